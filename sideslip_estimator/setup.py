@@ -1,0 +1,22 @@
+"""ament_python package: colcon builds it, pip installs it."""
+
+from setuptools import find_packages, setup
+
+PACKAGE = "sideslip_estimator"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "tests"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+    ],
+    install_requires=["numpy", "sideslip_msgs_py"],
+    zip_safe=False,
+    maintainer="sideslip maintainers",
+    maintainer_email="maintainers@sideslip.invalid",
+    description="Sideslip-angle estimator node and model back-ends.",
+    license="Apache-2.0",
+    entry_points={"console_scripts": []},
+)
