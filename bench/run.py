@@ -1,0 +1,156 @@
+"""Benchmarks → bench/results.json (`make bench`).
+
+Every figure is measured in this run on this machine; ratios compare simulated time with
+wall-clock time measured in the same run. Targets (issue #2):
+- single vehicle in the node path (one sample per call) >= 100x real time;
+- batch simulation of paper-train on one core >= 1000x real time (aggregate);
+- paper-train with paper noise, bags written, in < 60 s on this 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+from sideslip_sim.generate import generate, prepare_output
+from sideslip_sim.maneuvers import Maneuver
+from sideslip_sim.presets import paper_train
+from sideslip_sim.simulate import DT_S, Stepper, simulate
+from sideslip_sim.vehicle import load_vehicle
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def _git_commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+        )
+        return out.stdout.strip() or "unknown"
+    except OSError:
+        return "unknown"
+
+
+def bench_node_path(vehicle, seconds: float = 60.0) -> dict[str, float]:
+    """One vehicle stepped one 2.5-ms sample per Python call, as the sim node does."""
+    m = Maneuver("node_path", "random_steer", seconds, 80.0, 400.0, seed=1)
+    stepper = Stepper(vehicle, m)
+    stepper.step()  # compile / load cache outside the timing
+    started = time.perf_counter()
+    while not stepper.done:
+        stepper.step()
+    wall = time.perf_counter() - started
+    simulated = (len(stepper) - 1) * DT_S
+    return {
+        "simulated_s": simulated,
+        "wall_s": wall,
+        "real_time_ratio": simulated / wall,
+        "us_per_step": wall / (len(stepper) - 1) * 1e6,
+        "target_ratio": 100.0,
+    }
+
+
+def bench_batch_one_core(vehicle) -> dict[str, float]:
+    """paper-train simulated in this one process (no noise, no bag I/O)."""
+    runs = paper_train()
+    simulate(vehicle, Maneuver("warm", "straight", 0.01, 10.0, 0.0))
+    started = time.perf_counter()
+    samples = sum(len(simulate(vehicle, m)) for m in runs)
+    wall = time.perf_counter() - started
+    return {
+        "runs": len(runs),
+        "samples": samples,
+        "simulated_s": samples * DT_S,
+        "wall_s": wall,
+        "real_time_ratio": samples * DT_S / wall,
+        "target_ratio": 1000.0,
+    }
+
+
+def bench_generate_paper_train(vehicle, jobs: int) -> dict[str, float]:
+    """sideslip-generate --preset paper-train --noise paper: simulation + noise + bags."""
+    runs = paper_train()
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "paper-train"
+        prepare_output(out, force=False)
+        started = time.perf_counter()
+        summaries = generate(
+            vehicle,
+            runs,
+            out,
+            noise="paper",
+            seed=0,
+            preset_name="paper-train",
+            jobs=jobs,
+            progress=False,
+        )
+        wall = time.perf_counter() - started
+        size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
+    samples = sum(s.samples for s in summaries)
+    return {
+        "jobs": jobs,
+        "runs": len(summaries),
+        "samples": samples,
+        "messages": samples * 5,
+        "wall_s": wall,
+        "real_time_ratio": samples * DT_S / wall,
+        "bag_bytes": size,
+        "target_wall_s": 60.0,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("bench/results.json"))
+    args = parser.parse_args(argv)
+    vehicle = load_vehicle("paper_sedan")
+    results: dict[str, object] = {
+        "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "commit": _git_commit(),
+        "machine": {
+            "cpu": _cpu_model(),
+            "cores": os.cpu_count(),
+            "python": sys.version.split()[0],
+            "platform": platform.platform(),
+        },
+        "command": "make bench",
+    }
+    print("simulator: node path (one step per call) ...", flush=True)
+    node = bench_node_path(vehicle)
+    print("simulator: batch paper-train on one core ...", flush=True)
+    batch = bench_batch_one_core(vehicle)
+    cores = min(2, os.cpu_count() or 1)
+    print(f"generator: paper-train with paper noise, {cores} jobs ...", flush=True)
+    gen = bench_generate_paper_train(vehicle, jobs=cores)
+    results["simulator"] = {
+        "single_vehicle_node_path": node,
+        "batch_paper_train_one_core": batch,
+        "generate_paper_train_paper_noise": gen,
+    }
+    previous = json.loads(args.out.read_text()) if args.out.exists() else {}
+    # Keep other sections (later issues add theirs); replace what this run measured.
+    previous.update(results)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(previous, indent=2) + "\n")
+    print(json.dumps(results["simulator"], indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,315 @@
+"""Labelled bag generation: manoeuvres → simulation → sensor noise → rosbag2 MCAP bags.
+
+`generate_run` is the pure-ish unit of work (one manoeuvre → one bag); `generate` runs
+a preset over a process pool; `main` is the `sideslip-generate` CLI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as futures
+import dataclasses
+import hashlib
+import json
+import math
+import multiprocessing
+import os
+import platform
+import shutil
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from sideslip_msgs_py.bag import write_bag
+from sideslip_msgs_py.sample import SensorNoiseSigma
+from sideslip_sim import __version__
+from sideslip_sim.maneuvers import Maneuver, ManeuverError
+from sideslip_sim.presets import PRESETS, PresetError, preset
+from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
+from sideslip_sim.simulate import DT_S, SimulationError, simulate
+from sideslip_sim.tir import TirError
+from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
+
+INDEX_FILE = "index.json"
+EXIT_BAD_INPUT = 2
+EXIT_RUN_FAILED = 1
+
+
+class OutputDirError(ValueError):
+    """The output directory exists with content and --force was not given."""
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What one generated bag holds, for the index and the printed summary."""
+
+    name: str
+    family: str
+    bag: str
+    samples: int
+    duration_s: float
+    peak_abs_beta_deg: float
+    peak_abs_ay_mps2: float
+    peak_abs_yaw_rate_degps: float
+    speed_start_kmh: float
+    speed_end_kmh: float
+    speed_min_kmh: float
+    mu: float
+    sim_wall_s: float
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def run_metadata(
+    vehicle: VehicleParams,
+    maneuver: Maneuver,
+    noise: str,
+    sigma: SensorNoiseSigma,
+    seed: int,
+    preset_name: str,
+) -> dict[str, object]:
+    """Everything needed to regenerate the bag bit for bit, stored inside it."""
+    tire_path = vehicle.tire_path()
+    return {
+        "generator": f"sideslip_sim {__version__}",
+        "preset": preset_name,
+        "maneuver": maneuver.to_dict(),
+        "vehicle": {k: v for k, v in dataclasses.asdict(vehicle).items() if k != "source_path"},
+        "tire_file": tire_path.name,
+        "tire_sha256": _file_digest(tire_path),
+        "noise_profile": noise,
+        "noise_sigma": dataclasses.asdict(sigma),
+        "seed": seed,
+        "dt_s": DT_S,
+        "integrator": "RK4 (classic 4th order), fixed step",
+        "python": platform.python_version(),
+    }
+
+
+def generate_run(
+    vehicle: VehicleParams,
+    maneuver: Maneuver,
+    out_dir: Path,
+    *,
+    noise: str,
+    seed: int,
+    preset_name: str,
+) -> RunSummary:
+    """Simulate one manoeuvre and write its bag to out_dir/<maneuver.name>."""
+    started = time.perf_counter()
+    result = simulate(vehicle, maneuver)
+    sim_wall = time.perf_counter() - started
+    sigma = noise_profile(noise)
+    exact = exact_samples(result)
+    samples = add_noise(exact, sigma, run_seed(seed, maneuver.name))
+    bag = out_dir / maneuver.name
+    write_bag(
+        bag,
+        samples,
+        sigma=sigma,
+        run_metadata=run_metadata(vehicle, maneuver, noise, sigma, seed, preset_name),
+    )
+    speed_kmh = result.u_mps * 3.6
+    return RunSummary(
+        name=maneuver.name,
+        family=maneuver.scenario or maneuver.family,
+        bag=bag.name,
+        samples=len(result),
+        duration_s=maneuver.duration_s,
+        peak_abs_beta_deg=float(np.degrees(np.max(np.abs(result.beta_rad)))),
+        peak_abs_ay_mps2=float(np.max(np.abs(result.ay_mps2))),
+        peak_abs_yaw_rate_degps=float(np.degrees(np.max(np.abs(result.yaw_rate_radps)))),
+        speed_start_kmh=float(speed_kmh[0]),
+        speed_end_kmh=float(speed_kmh[-1]),
+        speed_min_kmh=float(np.min(speed_kmh)),
+        mu=maneuver.mu,
+        sim_wall_s=sim_wall,
+    )
+
+
+def prepare_output(out_dir: Path, *, force: bool) -> None:
+    """Create out_dir; refuse a non-empty one unless force. With force, only bags (folders
+    holding a metadata.yaml) and our index are removed: nothing else of the user's."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputDirError(f"--out {out_dir} exists and is not a directory")
+    if out_dir.is_dir() and any(out_dir.iterdir()):
+        if not force:
+            raise OutputDirError(
+                f"--out {out_dir} exists and is not empty; pass --force to replace its bags"
+            )
+        for child in out_dir.iterdir():
+            if child.is_dir() and (child / "metadata.yaml").is_file():
+                shutil.rmtree(child)
+            elif child.name == INDEX_FILE:
+                child.unlink()
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+
+def _warm_up(vehicle: VehicleParams) -> None:
+    """Compile (or load from cache) the model once before forking workers."""
+    simulate(vehicle, Maneuver("warm_up", "straight", 0.01, 10.0, 0.0))
+
+
+def generate(
+    vehicle: VehicleParams,
+    maneuvers: Sequence[Maneuver],
+    out_dir: Path,
+    *,
+    noise: str = "paper",
+    seed: int = 0,
+    preset_name: str = "custom",
+    jobs: int = 1,
+    progress: bool = True,
+    on_done: Callable[[RunSummary], None] | None = None,
+) -> list[RunSummary]:
+    """Generate one bag per manoeuvre into out_dir (which must be prepared) and an index."""
+    noise_profile(noise)  # validate before any work
+    names = [m.name for m in maneuvers]
+    if len(set(names)) != len(names):
+        raise ManeuverError("manoeuvre names must be unique: each names its bag")
+    _warm_up(vehicle)
+    summaries: list[RunSummary] = []
+    kwargs = {"noise": noise, "seed": seed, "preset_name": preset_name}
+    bar = tqdm(
+        total=len(maneuvers), unit="run", desc="generate", disable=not progress, file=sys.stderr
+    )
+    if jobs <= 1:
+        for m in maneuvers:
+            summaries.append(generate_run(vehicle, m, out_dir, **kwargs))
+            bar.update(1)
+    else:
+        ctx = multiprocessing.get_context("fork")
+        with futures.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            pending = [pool.submit(generate_run, vehicle, m, out_dir, **kwargs) for m in maneuvers]
+            for fut in futures.as_completed(pending):
+                summaries.append(fut.result())
+                bar.update(1)
+    bar.close()
+    order = {name: i for i, name in enumerate(names)}
+    summaries.sort(key=lambda s: order[s.name])
+    index = {
+        "preset": preset_name,
+        "vehicle": vehicle.name,
+        "noise": noise,
+        "seed": seed,
+        "runs": [dataclasses.asdict(s) for s in summaries],
+    }
+    (out_dir / INDEX_FILE).write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
+    if on_done:
+        for s in summaries:
+            on_done(s)
+    return summaries
+
+
+def format_summary(summaries: Sequence[RunSummary], limit: int = 40) -> str:
+    """A fixed-width table: one line per run (the first `limit`), then the totals."""
+    head = (
+        f"{'run':<34} {'samples':>7} {'|β|max°':>8} {'|a_y|max':>8} {'|r|max°/s':>9} "
+        f"{'v0 km/h':>7} {'v_end':>6} {'μ':>4}"
+    )
+    lines = [head, "-" * len(head)]
+    for s in summaries[:limit]:
+        lines.append(
+            f"{s.name[:34]:<34} {s.samples:>7} {s.peak_abs_beta_deg:>8.2f} "
+            f"{s.peak_abs_ay_mps2:>8.2f} {s.peak_abs_yaw_rate_degps:>9.1f} "
+            f"{s.speed_start_kmh:>7.1f} {s.speed_end_kmh:>6.1f} {s.mu:>4.2f}"
+        )
+    if len(summaries) > limit:
+        lines.append(f"... {len(summaries) - limit} more runs (see {INDEX_FILE})")
+    total = sum(s.samples for s in summaries)
+    sim_time = total * DT_S
+    lines.append(f"{len(summaries)} runs, {total} samples ({sim_time:.1f} s simulated at 400 Hz)")
+    return "\n".join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sideslip-generate",
+        description=(
+            "Simulate a preset of manoeuvres with the 14-DOF vehicle model and write one "
+            "rosbag2 MCAP bag per run (noisy sensor topics + exact ground truth at 400 Hz), "
+            "plus index.json with a summary of every run."
+        ),
+        epilog=(
+            "presets: paper-train (Table 3 grid), paper-test (Table 4 scenarios), "
+            "randomized (seeded draws; see --count). Example: sideslip-generate --preset "
+            "paper-test --out data/paper-test --noise paper"
+        ),
+    )
+    parser.add_argument("--preset", required=True, help=f"one of: {', '.join(PRESETS)}")
+    parser.add_argument("--out", required=True, type=Path, help="output directory for the bags")
+    parser.add_argument("--noise", default="paper", help="sensor noise profile: paper | none")
+    parser.add_argument("--seed", type=int, default=0, help="base seed (noise, random draws)")
+    parser.add_argument(
+        "--vehicle",
+        default="paper_sedan",
+        help="shipped vehicle name or path to a vehicle YAML (default paper_sedan)",
+    )
+    parser.add_argument("--count", type=int, default=100, help="runs for the randomized preset")
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=min(2, os.cpu_count() or 1),
+        help="worker processes (default: up to 2)",
+    )
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace bags in a non-empty --out (other files are kept)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        noise_profile(args.noise)
+        maneuvers = preset(args.preset, seed=args.seed, count=args.count)
+        vehicle = load_vehicle(args.vehicle)
+        vehicle.tire_path()
+        from sideslip_sim.simulate import load_tire
+
+        load_tire(str(vehicle.tire_path()))
+        if args.jobs < 1:
+            raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
+        prepare_output(args.out, force=args.force)
+    except (PresetError, VehicleFileError, TirError, OutputDirError, ValueError, OSError) as exc:
+        print(f"sideslip-generate: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    started = time.perf_counter()
+    try:
+        summaries = generate(
+            vehicle,
+            maneuvers,
+            args.out,
+            noise=args.noise,
+            seed=args.seed,
+            preset_name=args.preset,
+            jobs=args.jobs,
+            progress=not args.quiet,
+        )
+    except (SimulationError, ManeuverError) as exc:
+        print(f"sideslip-generate: run failed: {exc}", file=sys.stderr)
+        return EXIT_RUN_FAILED
+    wall = time.perf_counter() - started
+    if not args.quiet:
+        print(format_summary(summaries))
+        total = sum(s.samples for s in summaries) * DT_S
+        ratio = total / wall if wall > 0 else math.inf
+        print(
+            f"wrote {len(summaries)} bags to {args.out} in {wall:.1f} s "
+            f"({ratio:.0f}x real time, {args.jobs} job(s))"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

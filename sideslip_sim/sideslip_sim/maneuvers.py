@@ -1,0 +1,293 @@
+"""Manoeuvres: named, parameterised runs, and the per-step programs that drive the model.
+
+A `Maneuver` is plain data (what a bag's metadata records). `build_program` turns it
+into per-step inputs: an open-loop STL trace, a mask of the steps where the path-
+following driver steers instead, the drive torque, and the reference path.
+
+Sign convention: STL > 0 steers left (δ > 0, yaw rate > 0, a_y > 0). A signed
+amplitude sets the first steering direction.
+
+Amplitudes. Table 3 of the paper gives STL amplitudes for sine and sweep steer; the
+vehicle file's STL ratio maps them to road-wheel angles (see README, "Steering scale").
+Where the paper gives none (random steer) or a run is randomised, the amplitude is
+chosen from the linear single-track model so that the steady-state lateral
+acceleration is a stated fraction of μ·g at the run's initial speed: linear tyres at
+small fractions, the nonlinear range near 0.8, never a command that could only spin
+the car. For lane changes, the amplitude scales the lateral offset of the path
+(0.10 m ↔ the ISO 3888-1 offset of 3.5 m) and the driver produces the STL.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sideslip_sim.driver import PathBuilder, iso_double_lane_change
+from sideslip_sim.single_track import SingleTrack
+from sideslip_sim.vehicle import GRAVITY_MPS2, VehicleParams
+
+FAMILIES = (
+    "straight",
+    "double_lane_change",
+    "sine_steer",
+    "sweep_steer",
+    "cornering",
+    "random_steer",
+    "step_steer",
+    "scenario",
+)
+SCENARIOS = ("scen1", "scen2", "scen3", "scen4")
+
+# Lead-in before open-loop steering starts [s]: the run starts in straight-line equilibrium.
+LEAD_IN_S = 0.5
+SINE_FREQUENCY_HZ = 0.5
+SWEEP_START_HZ = 0.2
+SWEEP_END_HZ = 2.0
+RANDOM_CUTOFF_HZ = 1.0
+# Lateral-acceleration fraction of μ·g for auto amplitudes and the right-angle turn radius.
+AUTO_AY_FRACTION = 0.5
+ISO_LANE_OFFSET_M = 3.5
+DLC_REFERENCE_STL_M = 0.10
+
+
+class ManeuverError(ValueError):
+    """A manoeuvre has an unknown family/scenario or a value out of range."""
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    """One simulated run. Units: s, km/h (as the paper's tables), N m at the wheels, m."""
+
+    name: str
+    family: str
+    duration_s: float
+    speed_kmh: float
+    torque_nm: float
+    stl_amplitude_m: float = 0.0  # signed; 0 = automatic (see module docstring)
+    mu: float = 1.0  # road friction relative to the tyre's test surface
+    seed: int = 0  # random steer / randomised draws
+    payload_kg: float = 0.0  # added at the sprung CG (randomised vehicle mass)
+    scenario: str = ""  # Table 4 scenario id when family == "scenario"
+    ay_fraction: float = AUTO_AY_FRACTION
+
+    def __post_init__(self) -> None:
+        if self.family not in FAMILIES:
+            raise ManeuverError(f"{self.name}: unknown family {self.family!r}; known: {FAMILIES}")
+        if self.family == "scenario" and self.scenario not in SCENARIOS:
+            raise ManeuverError(
+                f"{self.name}: unknown scenario {self.scenario!r}; known: {SCENARIOS}"
+            )
+        if not 0.0 < self.duration_s <= 600.0:
+            raise ManeuverError(
+                f"{self.name}: duration_s must be in (0, 600], got {self.duration_s}"
+            )
+        if not 0.0 <= self.speed_kmh <= 250.0:
+            raise ManeuverError(f"{self.name}: speed_kmh must be in [0, 250], got {self.speed_kmh}")
+        if not 0.05 <= self.mu <= 1.5:
+            raise ManeuverError(f"{self.name}: mu must be in [0.05, 1.5], got {self.mu}")
+        if not 0.0 <= self.payload_kg <= 1000.0:
+            raise ManeuverError(
+                f"{self.name}: payload_kg must be in [0, 1000], got {self.payload_kg}"
+            )
+        if not 0.0 < self.ay_fraction <= 1.0:
+            raise ManeuverError(
+                f"{self.name}: ay_fraction must be in (0, 1], got {self.ay_fraction}"
+            )
+
+    @property
+    def speed_mps(self) -> float:
+        return self.speed_kmh / 3.6
+
+    def to_dict(self) -> dict[str, object]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Program:
+    """Per-step inputs for n steps: STL [m] where open loop, driver mask, torque [N m]."""
+
+    stl_open_m: np.ndarray
+    use_driver: np.ndarray
+    torque_nm: np.ndarray
+    path_x_m: np.ndarray
+    path_y_m: np.ndarray
+
+
+def with_payload(vehicle: VehicleParams, payload_kg: float) -> VehicleParams:
+    """The vehicle with payload added at the sprung CG; inertias scale with sprung mass."""
+    if payload_kg == 0.0:
+        return vehicle
+    scale = (vehicle.sprung_mass_kg + payload_kg) / vehicle.sprung_mass_kg
+    return dataclasses.replace(
+        vehicle,
+        sprung_mass_kg=vehicle.sprung_mass_kg + payload_kg,
+        roll_inertia_kgm2=vehicle.roll_inertia_kgm2 * scale,
+        pitch_inertia_kgm2=vehicle.pitch_inertia_kgm2 * scale,
+        yaw_inertia_kgm2=vehicle.yaw_inertia_kgm2 * scale,
+    )
+
+
+def auto_stl_amplitude(
+    vehicle: VehicleParams, model: SingleTrack, speed_mps: float, mu: float, fraction: float
+) -> float:
+    """STL [m] whose steady-state a_y is fraction·μ·g at speed (clamped to the lock)."""
+    speed = max(speed_mps, 3.0)
+    delta = fraction * mu * GRAVITY_MPS2 / model.lateral_acceleration_gain(speed)
+    delta = min(delta, vehicle.max_road_wheel_angle_rad)
+    return delta * vehicle.stl_per_road_wheel_angle_m_per_rad
+
+
+def _time(n: int, dt: float) -> np.ndarray:
+    return np.arange(n) * dt
+
+
+def _sine(t: np.ndarray, amplitude: float, start_s: float, freq_hz: float) -> np.ndarray:
+    tau = np.clip(t - start_s, 0.0, None)
+    return np.where(t >= start_s, amplitude * np.sin(2.0 * np.pi * freq_hz * tau), 0.0)
+
+
+def _sweep(t: np.ndarray, amplitude: float, start_s: float, end_s: float) -> np.ndarray:
+    """Linear chirp from SWEEP_START_HZ to SWEEP_END_HZ between start_s and end_s."""
+    span = max(end_s - start_s, 1e-6)
+    tau = np.clip(t - start_s, 0.0, span)
+    rate = (SWEEP_END_HZ - SWEEP_START_HZ) / span
+    phase = 2.0 * np.pi * (SWEEP_START_HZ * tau + 0.5 * rate * tau * tau)
+    return np.where(t >= start_s, amplitude * np.sin(phase), 0.0)
+
+
+def _random(t: np.ndarray, amplitude: float, start_s: float, seed: int) -> np.ndarray:
+    """Band-limited Gaussian steering: white noise low-passed at RANDOM_CUTOFF_HZ (a
+    raised-cosine roll-off in the frequency domain), scaled so its peak is |amplitude|
+    (a negative amplitude mirrors it)
+    and faded in over one second after the lead-in."""
+    rng = np.random.default_rng(seed)
+    n = t.shape[0]
+    dt = float(t[1] - t[0]) if n > 1 else 1.0
+    spectrum = np.fft.rfft(rng.standard_normal(n))
+    freq = np.fft.rfftfreq(n, dt)
+    cutoff = RANDOM_CUTOFF_HZ
+    gain = np.where(freq <= cutoff, 1.0, 0.0)
+    band = (freq > cutoff) & (freq < 2.0 * cutoff)
+    gain[band] = 0.5 * (1.0 + np.cos(np.pi * (freq[band] - cutoff) / cutoff))
+    signal = np.fft.irfft(spectrum * gain, n)
+    signal -= signal.mean()
+    peak = np.max(np.abs(signal))
+    signal = signal / peak * amplitude if peak > 0 else signal  # sign mirrors the trace
+    fade = np.clip((t - start_s) / 1.0, 0.0, 1.0)
+    return signal * fade
+
+
+def _turn_radius(speed_mps: float, mu: float, fraction: float) -> float:
+    return max(speed_mps**2 / (fraction * mu * GRAVITY_MPS2), 8.0)
+
+
+def _cornering_path(
+    builder: PathBuilder, speed_mps: float, mu: float, fraction: float, direction: float
+) -> PathBuilder:
+    radius = _turn_radius(speed_mps, mu, fraction)
+    lead = max(5.0, 0.8 * speed_mps)
+    return builder.straight(lead).arc(radius, direction * math.pi / 2.0)
+
+
+def _dlc_offset(amplitude_m: float) -> float:
+    amp = amplitude_m if amplitude_m != 0.0 else DLC_REFERENCE_STL_M
+    return ISO_LANE_OFFSET_M * amp / DLC_REFERENCE_STL_M
+
+
+BuildFn = Callable[[Maneuver, VehicleParams, SingleTrack, np.ndarray], tuple]
+
+
+def _build_straight(m, vehicle, model, t):
+    return np.zeros_like(t), np.zeros(t.shape, bool), None
+
+
+def _build_sine(m, vehicle, model, t):
+    amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
+    return _sine(t, amp, LEAD_IN_S, SINE_FREQUENCY_HZ), np.zeros(t.shape, bool), None
+
+
+def _build_sweep(m, vehicle, model, t):
+    amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
+    return _sweep(t, amp, LEAD_IN_S, m.duration_s), np.zeros(t.shape, bool), None
+
+
+def _build_random(m, vehicle, model, t):
+    amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
+    return _random(t, amp, LEAD_IN_S, m.seed), np.zeros(t.shape, bool), None
+
+
+def _build_step(m, vehicle, model, t):
+    """Ramp to a constant STL over 0.5 s after the lead-in, then hold (ISO 7401 / 4138
+    style): the steady-state cornering reference."""
+    amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
+    ramp = np.clip((t - LEAD_IN_S) / 0.5, 0.0, 1.0)
+    return amp * ramp, np.zeros(t.shape, bool), None
+
+
+def _build_dlc(m, vehicle, model, t):
+    path = iso_double_lane_change(PathBuilder(), _dlc_offset(m.stl_amplitude_m))
+    return np.zeros_like(t), np.ones(t.shape, bool), path
+
+
+def _build_cornering(m, vehicle, model, t):
+    direction = -1.0 if m.stl_amplitude_m < 0 else 1.0
+    path = _cornering_path(PathBuilder(), m.speed_mps, m.mu, m.ay_fraction, direction)
+    return np.zeros_like(t), np.ones(t.shape, bool), path
+
+
+def _build_scenario(m, vehicle, model, t):
+    """Table 4 test scenarios (their steering details are ours: the paper gives only the
+    description, speed, torque and duration)."""
+    if m.scenario == "scen1":  # DLC, then open-loop sine steer once the course is done
+        builder = iso_double_lane_change(PathBuilder(), ISO_LANE_OFFSET_M)
+        switch_s = builder.length_m / max(m.speed_mps, 1.0)
+        amp = m.stl_amplitude_m or 0.08
+        return _sine(t, amp, switch_s, SINE_FREQUENCY_HZ), t < switch_s, builder
+    if m.scenario == "scen2":  # DLC, a short straight, then a right-angle right turn
+        builder = iso_double_lane_change(PathBuilder(), ISO_LANE_OFFSET_M).straight(10.0)
+        radius = _turn_radius(m.speed_mps, m.mu, m.ay_fraction)
+        builder.arc(radius, -math.pi / 2.0)
+        return np.zeros_like(t), np.ones(t.shape, bool), builder
+    if m.scenario == "scen3":  # continuous sine steer
+        amp = m.stl_amplitude_m or 0.09
+        return _sine(t, amp, LEAD_IN_S, 0.4), np.zeros(t.shape, bool), None
+    # scen4: random steer
+    amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
+    return _random(t, amp, LEAD_IN_S, m.seed), np.zeros(t.shape, bool), None
+
+
+_BUILDERS: dict[str, BuildFn] = {
+    "straight": _build_straight,
+    "double_lane_change": _build_dlc,
+    "sine_steer": _build_sine,
+    "sweep_steer": _build_sweep,
+    "cornering": _build_cornering,
+    "random_steer": _build_random,
+    "step_steer": _build_step,
+    "scenario": _build_scenario,
+}
+
+
+def build_program(m: Maneuver, vehicle: VehicleParams, model: SingleTrack, dt_s: float) -> Program:
+    """Per-step inputs for the whole run (n = round(duration / dt) samples)."""
+    n = round(m.duration_s / dt_s)
+    t = _time(n, dt_s)
+    stl, use_driver, builder = _BUILDERS[m.family](m, vehicle, model, t)
+    if builder is not None:
+        # Extend the path well past what the run can cover so the driver never runs out.
+        reach = (m.speed_mps + 15.0) * m.duration_s + 50.0
+        builder.straight(max(reach - builder.length_m, 20.0))
+        path_x, path_y = builder.build()
+    else:
+        path_x, path_y = np.array([0.0, 1.0]), np.array([0.0, 0.0])
+    return Program(
+        stl_open_m=np.ascontiguousarray(stl, dtype=np.float64),
+        use_driver=np.ascontiguousarray(use_driver, dtype=np.bool_),
+        torque_nm=np.full(n, float(m.torque_nm)),
+        path_x_m=np.ascontiguousarray(path_x, dtype=np.float64),
+        path_y_m=np.ascontiguousarray(path_y, dtype=np.float64),
+    )

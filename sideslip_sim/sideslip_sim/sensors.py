@@ -1,0 +1,82 @@
+"""Sensor model: exact signals of a run → what cheap sensors report, with Gaussian noise.
+
+Noise is zero-mean, independent per channel and per sample, with σ from a
+`SensorNoiseSigma` (the paper's profile by default: 1 km/h, 0.1 m/s², 0.2 deg/s, 1 mm).
+It is drawn from a numpy PCG64 generator seeded per run, so a bag is reproducible
+whatever order or process generated it. Ground truth is never noisy. The STL rate
+(JointState velocity) carries no noise: the paper gives no σ for it, and differencing
+the noisy STL would make a useless channel.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
+from sideslip_sim.simulate import SimResult
+
+NOISE_PROFILES = ("paper", "none")
+
+
+def noise_profile(name: str) -> SensorNoiseSigma:
+    """The named noise profile; unknown names are an error naming the known ones."""
+    if name == "paper":
+        return SensorNoiseSigma.paper()
+    if name == "none":
+        return SensorNoiseSigma.none()
+    raise ValueError(f"unknown noise profile {name!r}; known: {', '.join(NOISE_PROFILES)}")
+
+
+def run_seed(base_seed: int, run_name: str) -> np.random.SeedSequence:
+    """Per-run seed: independent of run order and of which worker runs it."""
+    return np.random.SeedSequence([int(base_seed) & 0xFFFFFFFF, zlib.crc32(run_name.encode())])
+
+
+def exact_samples(result: SimResult, start_stamp_ns: int = 0) -> SampleArrays:
+    """The run's exact signals as contract samples, with ground truth attached.
+
+    Stamps are start + k·dt in integer nanoseconds (2.5 ms = 2 500 000 ns, exact).
+    """
+    dt_ns = round((result.t_s[1] - result.t_s[0]) * 1e9) if len(result) > 1 else 2_500_000
+    stamps = start_stamp_ns + np.arange(len(result), dtype=np.int64) * dt_ns
+    return SampleArrays(
+        stamp_ns=stamps,
+        x_v_mps=result.u_mps,
+        y_v_mps=result.v_mps,
+        x_a_mps2=result.ax_mps2,
+        y_a_mps2=result.ay_mps2,
+        yaw_rate_radps=result.yaw_rate_radps,
+        stl_m=result.stl_m,
+        stl_rate_mps=result.stl_rate_mps,
+        truth_v_x_mps=result.u_mps,
+        truth_v_y_mps=result.v_mps,
+        truth_yaw_rate_radps=result.yaw_rate_radps,
+    )
+
+
+def add_noise(
+    samples: SampleArrays, sigma: SensorNoiseSigma, seed: np.random.SeedSequence | int
+) -> SampleArrays:
+    """Sensor channels plus Gaussian noise; stamps and ground truth unchanged."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    n = len(samples)
+
+    def noisy(values: np.ndarray, std: float) -> np.ndarray:
+        # Draw even when std == 0 so that changing one σ leaves the others' noise intact.
+        return values + std * rng.standard_normal(n)
+
+    return SampleArrays(
+        stamp_ns=samples.stamp_ns,
+        x_v_mps=noisy(samples.x_v_mps, sigma.velocity_mps),
+        y_v_mps=noisy(samples.y_v_mps, sigma.velocity_mps),
+        x_a_mps2=noisy(samples.x_a_mps2, sigma.acceleration_mps2),
+        y_a_mps2=noisy(samples.y_a_mps2, sigma.acceleration_mps2),
+        yaw_rate_radps=noisy(samples.yaw_rate_radps, sigma.yaw_rate_radps),
+        stl_m=noisy(samples.stl_m, sigma.stl_m),
+        stl_rate_mps=samples.stl_rate_mps,
+        truth_v_x_mps=samples.truth_v_x_mps,
+        truth_v_y_mps=samples.truth_v_y_mps,
+        truth_yaw_rate_radps=samples.truth_yaw_rate_radps,
+    )

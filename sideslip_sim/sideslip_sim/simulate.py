@@ -1,0 +1,314 @@
+"""Run one manoeuvre through the full-vehicle model: pure, no ROS, no I/O.
+
+The step loop (driver, steering, RK4) is compiled with numba so that one vehicle runs
+hundreds of times faster than real time on one core; `simulate` is the Python entry.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from sideslip_sim import dynamics as dyn
+from sideslip_sim.driver import DriverParams, pure_pursuit
+from sideslip_sim.maneuvers import Maneuver, build_program, with_payload
+from sideslip_sim.single_track import SingleTrack
+from sideslip_sim.tire import TireParams
+from sideslip_sim.vehicle import VehicleParams
+
+DT_S = 0.0025  # 400 Hz, the paper's step
+
+# Output channels of the compiled loop, one row per sample.
+O_U, O_V, O_R, O_AX, O_AY, O_STL, O_STL_RATE = 0, 1, 2, 3, 4, 5, 6
+O_X, O_Y, O_PSI, O_PHI, O_THETA, O_DELTA = 7, 8, 9, 10, 11, 12
+O_FZ = 13  # 4 corners
+O_OMEGA = 17  # 4 corners
+N_OUT = 21
+
+
+class SimulationError(RuntimeError):
+    """The integration produced a non-finite state (a model or input defect)."""
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Exact signals of one run, one row per 2.5-ms sample, SI units, vehicle frame at CG.
+
+    t_s[k] = k·dt. a_x/a_y are the CG accelerations in the horizontal vehicle frame,
+    so v̇ = a_y − r·u holds. fz_n and omega_radps have one column per corner (FL, FR, RL, RR).
+    """
+
+    maneuver: Maneuver
+    vehicle_name: str
+    t_s: np.ndarray
+    u_mps: np.ndarray
+    v_mps: np.ndarray
+    yaw_rate_radps: np.ndarray
+    ax_mps2: np.ndarray
+    ay_mps2: np.ndarray
+    stl_m: np.ndarray
+    stl_rate_mps: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    psi_rad: np.ndarray
+    roll_rad: np.ndarray
+    pitch_rad: np.ndarray
+    delta_rad: np.ndarray
+    fz_n: np.ndarray
+    omega_radps: np.ndarray
+
+    @property
+    def beta_rad(self) -> np.ndarray:
+        """Sideslip angle β = atan2(v, u) at the CG [rad]."""
+        return np.arctan2(self.v_mps, self.u_mps)
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+
+@njit(cache=True)
+def _run(
+    x: np.ndarray,
+    carry: np.ndarray,
+    k_start: int,
+    k_end: int,
+    p: np.ndarray,
+    tc: np.ndarray,
+    dt: float,
+    stl_open: np.ndarray,
+    use_driver: np.ndarray,
+    torque: np.ndarray,
+    mu: float,
+    path_x: np.ndarray,
+    path_y: np.ndarray,
+    driver_cfg: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """Integrate steps k_start..k_end-1 from state x (in place), writing out[k - k_start].
+
+    carry = [path index, previous STL] links consecutive calls, so a batch run and a
+    node stepping one sample per call go through the same compiled code. Returns -1,
+    or the first step whose outputs are not finite.
+    """
+    k1 = np.empty(dyn.N_STATE)
+    aux = np.empty(dyn.N_AUX)
+    work = np.empty((5, dyn.N_STATE))
+    steer = np.empty(dyn.N_STEER)
+    wheel_torque = np.empty(4)
+    ratio = p[dyn.P_STL_RATIO]
+    wheelbase = p[dyn.P_A] + p[dyn.P_B]
+    max_stl_step = driver_cfg[2] * ratio * dt
+    path_index = int(carry[0])
+    stl_prev = carry[1]
+    for k in range(k_start, k_end):
+        if use_driver[k]:
+            delta_cmd, path_index = pure_pursuit(
+                x[dyn.S_X],
+                x[dyn.S_Y],
+                x[dyn.S_PSI],
+                x[dyn.S_U],
+                wheelbase,
+                p[dyn.P_B],
+                path_x,
+                path_y,
+                path_index,
+                driver_cfg,
+            )
+            stl = delta_cmd * ratio
+            # Human-like steering-rate limit.
+            if stl > stl_prev + max_stl_step:
+                stl = stl_prev + max_stl_step
+            elif stl < stl_prev - max_stl_step:
+                stl = stl_prev - max_stl_step
+        else:
+            stl = stl_open[k]
+        stl_rate = (stl - stl_prev) / dt if k > 0 else 0.0
+        stl_prev = stl
+        delta_mean = dyn.road_wheel_angles(stl, p, steer)
+        dyn.wheel_torques(torque[k], p, wheel_torque)
+        dyn.rhs(x, p, tc, steer, wheel_torque, mu, k1, aux)
+
+        row = out[k - k_start]
+        row[O_U] = x[dyn.S_U]
+        row[O_V] = x[dyn.S_V]
+        row[O_R] = x[dyn.S_R]
+        row[O_AX] = aux[dyn.A_AX]
+        row[O_AY] = aux[dyn.A_AY]
+        row[O_STL] = stl
+        row[O_STL_RATE] = stl_rate
+        row[O_X] = x[dyn.S_X]
+        row[O_Y] = x[dyn.S_Y]
+        row[O_PSI] = x[dyn.S_PSI]
+        row[O_PHI] = x[dyn.S_PHI]
+        row[O_THETA] = x[dyn.S_THETA]
+        row[O_DELTA] = delta_mean
+        for i in range(4):
+            row[O_FZ + i] = aux[dyn.A_FZ + i]
+            row[O_OMEGA + i] = x[dyn.S_OMEGA + i]
+        for j in range(N_OUT):
+            if not math.isfinite(row[j]):
+                return k
+        dyn.rk4_step(x, dt, p, tc, steer, wheel_torque, mu, k1, work)
+        carry[0] = path_index
+        carry[1] = stl_prev
+    return -1
+
+
+@functools.lru_cache(maxsize=16)
+def load_tire(path: str) -> TireParams:
+    """Parsed tyre files are cached: a batch reads each file once."""
+    return TireParams.from_tir(Path(path))
+
+
+@dataclass(frozen=True)
+class PreparedVehicle:
+    """Everything the compiled loop needs for one vehicle (with payload applied)."""
+
+    vehicle: VehicleParams
+    tire: TireParams
+    tire_coef: np.ndarray
+    params: np.ndarray
+    single_track: SingleTrack
+
+
+def prepare(vehicle: VehicleParams, payload_kg: float = 0.0, mu: float = 1.0) -> PreparedVehicle:
+    loaded = with_payload(vehicle, payload_kg)
+    tire = load_tire(str(loaded.tire_path()))
+    coef = tire.coefficients()
+    params = dyn.pack_params(
+        loaded, tire.vertical_stiffness_n_per_m, tire.vertical_damping_ns_per_m, coef
+    )
+    return PreparedVehicle(loaded, tire, coef, params, SingleTrack.from_vehicle(loaded, tire, mu))
+
+
+def simulate(
+    vehicle: VehicleParams,
+    maneuver: Maneuver,
+    *,
+    dt_s: float = DT_S,
+    driver: DriverParams | None = None,
+) -> SimResult:
+    """Simulate one manoeuvre and return its exact signals."""
+    prepared = prepare(vehicle, maneuver.payload_kg, maneuver.mu)
+    program = build_program(maneuver, prepared.vehicle, prepared.single_track, dt_s)
+    driver = driver or DriverParams()
+    # The driver's feed-forward uses the dry-road understeer gradient: a human driver's
+    # habit does not change with μ (it is why low-μ runs saturate the tyres).
+    understeer = SingleTrack.from_vehicle(
+        prepared.vehicle, prepared.tire
+    ).understeer_gradient_rad_per_mps2
+    x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
+    n = program.stl_open_m.shape[0]
+    out = np.empty((n, N_OUT))
+    carry = np.array([0.0, program.stl_open_m[0] if n else 0.0])
+    bad = _run(
+        x,
+        carry,
+        0,
+        n,
+        prepared.params,
+        prepared.tire_coef,
+        dt_s,
+        program.stl_open_m,
+        program.use_driver,
+        program.torque_nm,
+        float(maneuver.mu),
+        program.path_x_m,
+        program.path_y_m,
+        driver.as_array(understeer),
+        out,
+    )
+    if bad >= 0:
+        raise SimulationError(
+            f"{maneuver.name}: non-finite state at t = {bad * dt_s:.4f} s on {vehicle.name}"
+        )
+    return SimResult(
+        maneuver=maneuver,
+        vehicle_name=vehicle.name,
+        t_s=np.arange(n) * dt_s,
+        u_mps=out[:, O_U].copy(),
+        v_mps=out[:, O_V].copy(),
+        yaw_rate_radps=out[:, O_R].copy(),
+        ax_mps2=out[:, O_AX].copy(),
+        ay_mps2=out[:, O_AY].copy(),
+        stl_m=out[:, O_STL].copy(),
+        stl_rate_mps=out[:, O_STL_RATE].copy(),
+        x_m=out[:, O_X].copy(),
+        y_m=out[:, O_Y].copy(),
+        psi_rad=out[:, O_PSI].copy(),
+        roll_rad=out[:, O_PHI].copy(),
+        pitch_rad=out[:, O_THETA].copy(),
+        delta_rad=out[:, O_DELTA].copy(),
+        fz_n=out[:, O_FZ : O_FZ + 4].copy(),
+        omega_radps=out[:, O_OMEGA : O_OMEGA + 4].copy(),
+    )
+
+
+class Stepper:
+    """One vehicle advanced one 2.5-ms sample per call: the sim node's path.
+
+    It runs the same compiled loop as `simulate` (one step per call), so a node and a
+    batch run of the same manoeuvre produce identical samples.
+    """
+
+    def __init__(
+        self,
+        vehicle: VehicleParams,
+        maneuver: Maneuver,
+        *,
+        dt_s: float = DT_S,
+        driver: DriverParams | None = None,
+    ) -> None:
+        prepared = prepare(vehicle, maneuver.payload_kg, maneuver.mu)
+        self.maneuver = maneuver
+        self.dt_s = dt_s
+        self._prepared = prepared
+        self._program = build_program(maneuver, prepared.vehicle, prepared.single_track, dt_s)
+        understeer = SingleTrack.from_vehicle(
+            prepared.vehicle, prepared.tire
+        ).understeer_gradient_rad_per_mps2
+        self._driver_cfg = (driver or DriverParams()).as_array(understeer)
+        self._x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
+        n = self._program.stl_open_m.shape[0]
+        self._carry = np.array([0.0, self._program.stl_open_m[0] if n else 0.0])
+        self._row = np.empty((1, N_OUT))
+        self.k = 0
+
+    def __len__(self) -> int:
+        return int(self._program.stl_open_m.shape[0])
+
+    @property
+    def done(self) -> bool:
+        return self.k >= len(self)
+
+    def step(self) -> np.ndarray:
+        """Advance one sample; returns its output row (see the O_* channel indices)."""
+        if self.done:
+            raise StopIteration(f"{self.maneuver.name}: all {len(self)} samples produced")
+        p = self._program
+        bad = _run(
+            self._x,
+            self._carry,
+            self.k,
+            self.k + 1,
+            self._prepared.params,
+            self._prepared.tire_coef,
+            self.dt_s,
+            p.stl_open_m,
+            p.use_driver,
+            p.torque_nm,
+            float(self.maneuver.mu),
+            p.path_x_m,
+            p.path_y_m,
+            self._driver_cfg,
+            self._row,
+        )
+        if bad >= 0:
+            raise SimulationError(f"{self.maneuver.name}: non-finite state at step {self.k}")
+        self.k += 1
+        return self._row[0]
