@@ -22,9 +22,8 @@ def main(vehicle_name: str = "paper_sedan") -> None:
     p = prepared.params
     ratio = vehicle.stl_per_road_wheel_angle_m_per_rad
     print(f"vehicle {vehicle.name}: {ratio} m STL per rad road-wheel angle")
-    print(
-        "| STL [m] | speed [km/h] | δ [deg] | a_y linear [m/s²] | a_y 14-DOF [m/s²] | β 14-DOF [deg] |"
-    )
+    print("| STL [m] | speed [km/h] | δ [deg] | a_y linear [m/s²] | a_y 14-DOF [m/s²] |", end="")
+    print(" β 14-DOF [deg] |")
     print("|---|---|---|---|---|---|")
     for stl in (0.06, 0.08, 0.10, 0.11):
         for kmh in (60, 70, 80, 90):
@@ -39,9 +38,15 @@ def main(vehicle_name: str = "paper_sedan") -> None:
             tail = slice(-200, None)
             ay = float(np.mean(r.ay_mps2[tail]))
             beta = float(np.degrees(np.mean(r.beta_rad[tail])))
-            print(
-                f"| {stl:.2f} | {kmh} | {np.degrees(delta):.2f} | {linear:.2f} | {ay:.2f} | {beta:.2f} |"
+            cells = (
+                f"{stl:.2f}",
+                str(kmh),
+                f"{np.degrees(delta):.2f}",
+                f"{linear:.2f}",
+                f"{ay:.2f}",
+                f"{beta:.2f}",
             )
+            print("| " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

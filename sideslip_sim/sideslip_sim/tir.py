@@ -25,7 +25,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["TirError", "TirFile", "TirTable", "parse_tir", "parse_tir_text"]
+__all__ = ["TirError", "TirFile", "TirTable", "format_tir", "parse_tir", "parse_tir_text"]
 
 _SECTION_RE = re.compile(r"^\[\s*([A-Za-z0-9_]+)\s*\]$")
 _KEY_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -184,6 +184,25 @@ def parse_tir_text(text: str, path: str = "<string>") -> TirFile:
         for name in table_columns
     }
     return TirFile(path=path, sections=sections, lines=lines, tables=tables)
+
+
+def format_tir(tir: TirFile) -> str:
+    """Write ``tir`` back as ``.tir`` text (comments are not kept; values round-trip exactly).
+
+    Strings are single-quoted; floats use ``repr`` so ``parse_tir_text(format_tir(t))``
+    reproduces every value bit for bit.
+    """
+    out: list[str] = []
+    for section, values in tir.sections.items():
+        out.append(f"[{section}]")
+        for key, value in values.items():
+            text = f"'{value}'" if isinstance(value, str) else repr(value)
+            out.append(f"{key:<24} = {text}")
+        table = tir.tables.get(section)
+        if table is not None:
+            out.append("{" + " ".join(table.columns) + "}")
+            out.extend(" ".join(repr(cell) for cell in row) for row in table.rows)
+    return "\n".join(out) + "\n"
 
 
 def _strip_comment(raw: str) -> str:

@@ -179,8 +179,12 @@ I_QSY1 = 73
 I_QSY2 = 74
 N_COEFFICIENTS = 75
 
-# Keys whose value must be strictly positive (they divide, or set the load scale).
+# Value ranges beyond "finite". Positive: they divide or set the load scale. Shape factors
+# C ≤ 2: a larger C makes the force change sign at large slip (and the sin/cos kernels
+# below assume |C·atan| ≤ π). |PKX3|, |PTX3| ≤ 5 keeps exp(±P·dfz) inside _exp's range.
 _POSITIVE = ("FNOMIN", "UNLOADED_RADIUS", "VERTICAL_STIFFNESS", "LFZO", "PKY2", "PTY2")
+_SHAPE_FACTORS = ("PCX1", "PCY1", "RCX1", "RCY1")
+_EXPONENTS = ("PKX3", "PTX3")
 # Accepted spellings in [UNITS]; sideslip works in SI only.
 _SI_UNITS = {
     "LENGTH": {"meter", "metre", "m"},
@@ -193,8 +197,7 @@ _SI_UNITS = {
 # All numerical kernels: numpy error model (a zero divisor gives inf/nan, never raises inside
 # an integrator) and FMA contraction (faster and at least as accurate; sign symmetric).
 _kernel = njit(cache=True, error_model="numpy", fastmath={"contract"})
-# Helpers are inlined at numba-IR level: LLVM does not inline across numba's per-function
-# libraries, and the call overhead was half of combined_forces' run time.
+# Private helpers are inlined at numba-IR level, so each public kernel is one function.
 _inline = njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 
 SIGMA_MIN_M = 0.05  # floor of the relaxation lengths; also what a lifted wheel gets [m]
@@ -216,6 +219,10 @@ class TireParams:
     def __post_init__(self) -> None:
         if len(self.values) != N_COEFFICIENTS:
             raise ValueError(f"{self.source}: expected {N_COEFFICIENTS} coefficients")
+        for key, value in zip(COEFFICIENT_KEYS, self.values, strict=True):
+            problem = _range_problem(key, value)
+            if problem:
+                raise ValueError(f"{self.source}: {key} = {value} {problem}")
 
     @classmethod
     def from_tir(cls, path: str | Path = DEFAULT_TIR) -> TireParams:
@@ -230,11 +237,11 @@ class TireParams:
         for key in COEFFICIENT_KEYS:
             section = _SECTION_OF[key]
             value = tir.number(section, key)
-            if not math.isfinite(value) or (key in _POSITIVE and value <= 0.0):
-                expected = "a finite number > 0" if key in _POSITIVE else "a finite number"
+            problem = _range_problem(key, value)
+            if problem:
                 raise TirError(
                     tir.path,
-                    f"[{section}] {key} = {value} must be {expected}",
+                    f"[{section}] {key} = {value} {problem}",
                     line=tir.lines.get((section, key)),
                     section=section,
                     key=key,
@@ -250,7 +257,9 @@ class TireParams:
         unknown = sorted(set(overrides) - set(COEFFICIENT_KEYS))
         if unknown:
             raise KeyError(f"unknown tyre coefficient(s): {', '.join(unknown)}")
-        values = tuple(float(overrides.get(k, v)) for k, v in zip(COEFFICIENT_KEYS, self.values))
+        values = tuple(
+            float(overrides.get(k, v)) for k, v in zip(COEFFICIENT_KEYS, self.values, strict=True)
+        )
         return TireParams(source=f"{self.source} (modified)", values=values)
 
     def coefficients(self) -> np.ndarray:
@@ -274,6 +283,19 @@ class TireParams:
     @property
     def vertical_damping_ns_per_m(self) -> float:
         return self.values[I_VERTICAL_DAMPING]
+
+
+def _range_problem(key: str, value: float) -> str | None:
+    """What is wrong with this coefficient value, or None."""
+    if not math.isfinite(value):
+        return "must be a finite number"
+    if key in _POSITIVE and not value > 0.0:
+        return "must be > 0"
+    if key in _SHAPE_FACTORS and not 0.0 < value <= 2.0:
+        return "must be in (0, 2]"
+    if key in _EXPONENTS and not -5.0 <= value <= 5.0:
+        return "must be in [-5, 5]"
+    return None
 
 
 def _check_units(tir: TirFile) -> None:
@@ -302,11 +324,11 @@ def _load_state(fnomin, lfzo, fz_n):
     return fz0, fz_shape / fz0 - 1.0, fz_shape, fz_n / fz_shape
 
 
-# Fast odd/even kernels for atan, sin, cos. combined_forces needs up to eight atan and four
-# sin/cos per call; the libm versions made it ~180 ns, too slow for 16 calls per 2.5 ms step
-# at 1000x real time. Polynomials: our own least-squares fits on Chebyshev nodes (numpy,
-# against mpmath); error vs libm < 1e-15 absolute, checked in tests. Odd/even symmetry is
-# exact because the kernels work on |x| and restore the sign.
+# Inline kernels for atan, sin, cos, exp. combined_forces needs up to eight atan, four sin/cos
+# and one exp per call; with libm it took ~180 ns (16 calls per 2.5-ms step at 1000x real
+# time leave 2.5 µs for everything), with these ~105 ns. Polynomials: our own least-squares
+# fits on Chebyshev nodes (numpy against mpmath); error vs libm ~1e-15, checked in tests.
+# Odd/even symmetry is exact because the kernels work on |x| and restore the sign.
 _TAN_PI_8 = 0.41421356237309503
 _TAN_3PI_8 = 2.414213562373095
 _HALF_PI = 0.5 * math.pi
@@ -361,19 +383,37 @@ def _sin_kernel(x):
 
 @_inline
 def _sin(theta):
+    """sin(θ) for |θ| ≤ π (all a shape factor C ≤ 2 can produce)."""
     a = abs(theta)
-    if a > math.pi:  # only if a file has a shape factor C > 2
-        return math.sin(theta)
     s = _sin_kernel(math.pi - a if a > _HALF_PI else a)
     return s if theta >= 0.0 else -s
 
 
 @_inline
 def _cos(theta):
+    """cos(θ) for |θ| ≤ π."""
     a = abs(theta)
-    if a > math.pi:
-        return math.cos(theta)
     return _sin_kernel(_HALF_PI - a)
+
+
+@_inline
+def _exp(x):
+    """exp(x) for |x| ≤ 16 (rel. error < 1e-12): Taylor for exp(x/64), then squared 6 times.
+
+    Inline instead of libm: a call forces every live value to be spilled around it.
+    """
+    r = min(max(x, -16.0), 16.0) * 0.015625
+    r2 = r * r
+    r4 = r2 * r2
+    p = (
+        (1.0 + r)
+        + (0.5 + r * (1.0 / 6.0)) * r2
+        + ((1.0 / 24.0 + r * (1.0 / 120.0)) + (1.0 / 720.0 + r * (1.0 / 5040.0)) * r2) * r4
+        + ((1.0 / 40320.0 + r * (1.0 / 362880.0)) + (1.0 / 3628800.0) * r2) * (r4 * r4)
+    )
+    for _ in range(6):
+        p = p * p
+    return p
 
 
 @_inline
@@ -393,7 +433,7 @@ def _sign(value):
 @_inline
 def _kx(pkx1, pkx2, pkx3, lkx, fz_shape, dfz):
     """Longitudinal slip stiffness at the shape load [N per unit slip], ≥ 0."""
-    k = fz_shape * _sign(pkx1) * (pkx1 + pkx2 * dfz) * math.exp(pkx3 * dfz)
+    k = fz_shape * _sign(pkx1) * (pkx1 + pkx2 * dfz) * _exp(pkx3 * dfz)
     return max(k * lkx, 0.0)
 
 
@@ -423,11 +463,9 @@ def combined_forces(coef, fz_n, kappa, tan_alpha, mu_scale):
     finite input; NaN in gives NaN out.
     """
     # All array reads come first, before any branch: numba then drops the array's
-    # reference counting (an atomic increment and decrement per call otherwise). The one
-    # libm call (exp) comes first too, while few values are live across it.
+    # reference counting (an atomic increment and decrement per call otherwise).
     fz0, dfz, fz_shape, load_ratio = _load_state(coef[I_FNOMIN], coef[I_LFZO], fz_n)
-    pkx1, pkx2, lkx = coef[I_PKX1], coef[I_PKX2], coef[I_LKX]
-    k_x = max(fz_shape * _sign(pkx1) * (pkx1 + pkx2 * dfz) * math.exp(coef[I_PKX3] * dfz) * lkx, 0.0)
+    k_x = _kx(coef[I_PKX1], coef[I_PKX2], coef[I_PKX3], coef[I_LKX], fz_shape, dfz)
     pdx1, pdx2, lmux = coef[I_PDX1], coef[I_PDX2], coef[I_LMUX]
     pdy1, pdy2, lmuy = coef[I_PDY1], coef[I_PDY2], coef[I_LMUY]
     c_x = coef[I_PCX1] * coef[I_LCX]
@@ -515,7 +553,7 @@ def relaxation_lengths(coef, fz_n):
     sigma_kappa = (
         fz_shape
         * (coef[I_PTX1] + coef[I_PTX2] * dfz)
-        * math.exp(-coef[I_PTX3] * dfz)
+        * _exp(-coef[I_PTX3] * dfz)
         * r0
         / fz0
         * coef[I_LSGKP]
