@@ -86,19 +86,23 @@ class PathBuilder:
         return float(np.sum(np.hypot(np.diff(x), np.diff(y))))
 
 
-def iso_double_lane_change(builder: PathBuilder, offset_m: float) -> PathBuilder:
+def iso_double_lane_change(
+    builder: PathBuilder, offset_m: float, length_scale: float = 1.0
+) -> PathBuilder:
     """ISO 3888-1-like course: 15 m entry, 30 m change, 25 m offset lane, 25 m return,
-    15 m exit. offset_m > 0 changes to the left first (3.5 m is the standard offset)."""
+    15 m exit, every length times length_scale. offset_m > 0 changes to the left first
+    (3.5 m is the standard offset)."""
+    k = length_scale
     return (
-        builder.straight(15.0)
-        .lane_change(30.0, offset_m)
-        .straight(25.0)
-        .lane_change(25.0, -offset_m)
-        .straight(15.0)
+        builder.straight(15.0 * k)
+        .lane_change(30.0 * k, offset_m)
+        .straight(25.0 * k)
+        .lane_change(25.0 * k, -offset_m)
+        .straight(15.0 * k)
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def pure_pursuit(
     x_m: float,
     y_m: float,

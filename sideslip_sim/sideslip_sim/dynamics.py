@@ -175,7 +175,7 @@ def pack_params(
 N_STEER = 12  # steer array: angles δ_i, then cos δ_i, then sin δ_i (held over a step)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
     """Road-wheel angles from STL into out (N_STEER: δ_i, cos δ_i, sin δ_i); returns δ.
 
@@ -207,7 +207,7 @@ def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
     return delta
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rhs(
     x: np.ndarray,
     p: np.ndarray,
@@ -297,7 +297,11 @@ def rhs(
         dx[S_KAPPA + i] = (omega * rw - vcx - speed * kappa) / sigma_kappa
 
         inertia = p[P_IW_F] if front else p[P_IW_R]
-        rolling = p[P_FRR] * fz_i * rw * math.tanh(omega / _OMEGA_RR_SCALE)
+        # Smooth sign of ω; tanh(x) rounds to ±1.0 in double precision for |x| > 19.1,
+        # so the (costly) call is only made near standstill.
+        spin = omega / _OMEGA_RR_SCALE
+        smooth_sign = math.tanh(spin) if abs(spin) < 20.0 else (1.0 if spin > 0.0 else -1.0)
+        rolling = p[P_FRR] * fz_i * rw * smooth_sign
         dx[S_OMEGA + i] = (wheel_torque[i] - rw * fxw - rolling) / inertia
 
         fx_i = fxw * cd - fyw * sd
@@ -384,7 +388,7 @@ def rhs(
     aux[A_AY] = v_dot + u * r
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def wheel_torques(total_torque: float, p: np.ndarray, out: np.ndarray) -> None:
     """Split the manoeuvre's total wheel torque [N m]: axle by layout, open differential."""
     front = p[P_FRONT_DRIVE] * total_torque
@@ -394,7 +398,7 @@ def wheel_torques(total_torque: float, p: np.ndarray, out: np.ndarray) -> None:
     out[3] = 0.5 * (total_torque - front)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rk4_step(
     x: np.ndarray,
     dt: float,

@@ -31,13 +31,18 @@ from sideslip_sim import __version__
 from sideslip_sim.maneuvers import Maneuver, ManeuverError
 from sideslip_sim.presets import PRESETS, PresetError, preset
 from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
-from sideslip_sim.simulate import DT_S, SimulationError, simulate
+from sideslip_sim.simulate import DT_S, SimulationError, load_tire, simulate
 from sideslip_sim.tir import TirError
 from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
 
 INDEX_FILE = "index.json"
 EXIT_BAD_INPUT = 2
 EXIT_RUN_FAILED = 1
+# A run "spun" when |β| exceeded this above SPIN_MIN_SPEED_MPS: beyond any kinematic
+# (low-speed) sideslip, the car has lost control. Such runs are kept (they are real
+# physics, e.g. a near-neutral rear-drive car on ice) but flagged in index.json.
+SPIN_BETA_DEG = 30.0
+SPIN_MIN_SPEED_MPS = 5.0
 
 
 class OutputDirError(ValueError):
@@ -60,6 +65,7 @@ class RunSummary:
     speed_end_kmh: float
     speed_min_kmh: float
     mu: float
+    spun: bool
     sim_wall_s: float
 
 
@@ -130,6 +136,12 @@ def generate_run(
         speed_end_kmh=float(speed_kmh[-1]),
         speed_min_kmh=float(np.min(speed_kmh)),
         mu=maneuver.mu,
+        spun=bool(
+            np.any(
+                (np.abs(np.degrees(result.beta_rad)) > SPIN_BETA_DEG)
+                & (result.u_mps > SPIN_MIN_SPEED_MPS)
+            )
+        ),
         sim_wall_s=sim_wall,
     )
 
@@ -226,6 +238,13 @@ def format_summary(summaries: Sequence[RunSummary], limit: int = 40) -> str:
     total = sum(s.samples for s in summaries)
     sim_time = total * DT_S
     lines.append(f"{len(summaries)} runs, {total} samples ({sim_time:.1f} s simulated at 400 Hz)")
+    spun = [s.name for s in summaries if s.spun]
+    if spun:
+        lines.append(
+            f"{len(spun)} run(s) spun (|β| > {SPIN_BETA_DEG:.0f}°), flagged in {INDEX_FILE}: "
+            + ", ".join(spun[:5])
+            + (" ..." if len(spun) > 5 else "")
+        )
     return "\n".join(lines)
 
 
@@ -274,10 +293,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         noise_profile(args.noise)
         maneuvers = preset(args.preset, seed=args.seed, count=args.count)
         vehicle = load_vehicle(args.vehicle)
-        vehicle.tire_path()
-        from sideslip_sim.simulate import load_tire
-
-        load_tire(str(vehicle.tire_path()))
+        load_tire(str(vehicle.tire_path()))  # a bad tyre file is refused before any work
         if args.jobs < 1:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         prepare_output(args.out, force=args.force)

@@ -14,7 +14,8 @@ chosen from the linear single-track model so that the steady-state lateral
 acceleration is a stated fraction of μ·g at the run's initial speed: linear tyres at
 small fractions, the nonlinear range near 0.8, never a command that could only spin
 the car. For lane changes, the amplitude scales the lateral offset of the path
-(0.10 m ↔ the ISO 3888-1 offset of 3.5 m) and the driver produces the STL.
+(0.10 m ↔ the ISO 3888-1 offset of 3.5 m), the course is stretched where following
+it would need more than μ·g, and the driver produces the STL.
 """
 
 from __future__ import annotations
@@ -52,6 +53,8 @@ RANDOM_CUTOFF_HZ = 1.0
 AUTO_AY_FRACTION = 0.5
 ISO_LANE_OFFSET_M = 3.5
 DLC_REFERENCE_STL_M = 0.10
+# Largest centreline lateral acceleration of a lane-change course, as a fraction of μ·g.
+DLC_AY_FRACTION = 0.7
 
 
 class ManeuverError(ValueError):
@@ -193,6 +196,16 @@ def _cornering_path(
     return builder.straight(lead).arc(radius, direction * math.pi / 2.0)
 
 
+def _dlc_length_scale(m: Maneuver, offset_m: float) -> float:
+    """Stretch of the ISO course so that following its centreline at the initial speed
+    needs at most μ·g: a cosine lane change of offset d over length L peaks at
+    a = d·π²·u² / (2·L²). 1 where the ISO course is feasible (the 30-m change at μ = 1
+    up to ~80 km/h); otherwise the course becomes as long as the friction requires,
+    instead of one that no car can follow."""
+    needed = abs(offset_m) * math.pi**2 * m.speed_mps**2 / (2.0 * 30.0**2)
+    return max(1.0, math.sqrt(needed / (DLC_AY_FRACTION * m.mu * GRAVITY_MPS2)))
+
+
 def _dlc_offset(amplitude_m: float) -> float:
     amp = amplitude_m if amplitude_m != 0.0 else DLC_REFERENCE_STL_M
     return ISO_LANE_OFFSET_M * amp / DLC_REFERENCE_STL_M
@@ -229,7 +242,8 @@ def _build_step(m, vehicle, model, t):
 
 
 def _build_dlc(m, vehicle, model, t):
-    path = iso_double_lane_change(PathBuilder(), _dlc_offset(m.stl_amplitude_m))
+    offset = _dlc_offset(m.stl_amplitude_m)
+    path = iso_double_lane_change(PathBuilder(), offset, _dlc_length_scale(m, offset))
     return np.zeros_like(t), np.ones(t.shape, bool), path
 
 

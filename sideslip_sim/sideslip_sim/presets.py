@@ -10,7 +10,7 @@ the 4 torques (28 runs) and cycles the 3 durations; its amplitude is automatic.
 paper-test: the four scenarios of Table 4, with seeds disjoint from training.
 
 randomized: `count` runs drawn from a seeded generator: family, initial speed
-20-120 km/h, drive torque 0-600 N m, road μ 0.3-1.0, steering severity 0.2-0.9 of the
+20-120 km/h, road μ 0.3-1.0, drive torque 0-600·μ N m, steering severity 0.2-0.9 of the
 μ-limited lateral acceleration, payload 0-300 kg, duration 6-15 s.
 """
 
@@ -133,16 +133,19 @@ def randomized(count: int, seed: int) -> list[Maneuver]:
     for i in range(count):
         family = str(rng.choice(families, p=weights / weights.sum()))
         sign = 1.0 if rng.random() < 0.5 else -1.0
+        mu = float(np.round(rng.uniform(0.3, 1.0), 3))
         runs.append(
             Maneuver(
                 name=f"rand{seed}_{i:04d}_{family}",
                 family=family,
                 duration_s=float(np.round(rng.uniform(6.0, 15.0), 2)),
                 speed_kmh=float(np.round(rng.uniform(20.0, 120.0), 1)),
-                torque_nm=float(np.round(rng.uniform(0.0, 600.0), 0)),
+                # Scaled by μ so that a low-friction draw does not just spin up the
+                # driven axle (no traction control is modelled).
+                torque_nm=float(np.round(rng.uniform(0.0, 600.0) * mu, 0)),
                 # Cornering reads only the sign; the others take the automatic amplitude.
                 stl_amplitude_m=sign if family == "cornering" else 0.0,
-                mu=float(np.round(rng.uniform(0.3, 1.0), 3)),
+                mu=mu,
                 seed=int(rng.integers(0, 2**31 - 1)),
                 payload_kg=float(np.round(rng.uniform(0.0, 300.0), 1)),
                 ay_fraction=float(np.round(rng.uniform(0.2, 0.9), 3)),

@@ -71,7 +71,7 @@ class SimResult:
         return int(self.t_s.shape[0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _run(
     x: np.ndarray,
     carry: np.ndarray,

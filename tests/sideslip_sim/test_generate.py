@@ -182,3 +182,18 @@ def test_second_vehicle_generates_and_differs(tmp_path):
     beta = np.degrees(contents.samples.beta_rad())
     assert math.isfinite(float(np.max(np.abs(beta))))
     assert np.max(np.abs(beta)) > 0.3
+
+
+def test_a_run_that_loses_control_is_kept_and_flagged_as_spun(tmp_path):
+    from sideslip_sim.generate import generate_run
+    from sideslip_sim.maneuvers import Maneuver
+
+    car = load_vehicle("compact_rwd")
+    # Rear drive, ice, full torque and a hard sine: the car spins, as a real one would.
+    severe = Maneuver("ice", "sine_steer", 6.0, 90.0, 900.0, stl_amplitude_m=0.12, mu=0.3)
+    gentle = Maneuver("dry", "sine_steer", 6.0, 60.0, 100.0, stl_amplitude_m=0.04)
+    spun = generate_run(car, severe, tmp_path, noise="none", seed=0, preset_name="t")
+    calm = generate_run(car, gentle, tmp_path, noise="none", seed=0, preset_name="t")
+    assert spun.spun and spun.peak_abs_beta_deg > 30.0
+    assert not calm.spun
+    assert len(read_bag(tmp_path / "ice").samples) == 2400  # kept whole, not dropped
