@@ -139,7 +139,21 @@ def pure_pursuit(
         if (path_x[k] - rx) ** 2 + (path_y[k] - ry) ** 2 >= lookahead * lookahead:
             target = k
             break
-    if target >= 0:
+    if target > best:
+        # Interpolate on the segment that crosses the look-ahead circle, so the target
+        # moves continuously rather than point to point (no steering chatter).
+        ax = path_x[target - 1] - rx
+        ay = path_y[target - 1] - ry
+        dx = path_x[target] - path_x[target - 1]
+        dy = path_y[target] - path_y[target - 1]
+        qa = dx * dx + dy * dy
+        qb = ax * dx + ay * dy
+        qc = ax * ax + ay * ay - lookahead * lookahead
+        frac = (-qb + math.sqrt(max(qb * qb - qa * qc, 0.0))) / qa if qa > 0.0 else 1.0
+        frac = min(max(frac, 0.0), 1.0)
+        tx = path_x[target - 1] + frac * dx
+        ty = path_y[target - 1] + frac * dy
+    elif target >= 0:
         tx = path_x[target]
         ty = path_y[target]
     else:

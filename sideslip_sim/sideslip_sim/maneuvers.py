@@ -256,13 +256,14 @@ def _build_cornering(m, vehicle, model, t):
 def _build_scenario(m, vehicle, model, t):
     """Table 4 test scenarios (their steering details are ours: the paper gives only the
     description, speed, torque and duration)."""
+    course = ISO_LANE_OFFSET_M, _dlc_length_scale(m, ISO_LANE_OFFSET_M)
     if m.scenario == "scen1":  # DLC, then open-loop sine steer once the course is done
-        builder = iso_double_lane_change(PathBuilder(), ISO_LANE_OFFSET_M)
+        builder = iso_double_lane_change(PathBuilder(), *course)
         switch_s = builder.length_m / max(m.speed_mps, 1.0)
         amp = m.stl_amplitude_m or 0.08
         return _sine(t, amp, switch_s, SINE_FREQUENCY_HZ), t < switch_s, builder
     if m.scenario == "scen2":  # DLC, a short straight, then a right-angle right turn
-        builder = iso_double_lane_change(PathBuilder(), ISO_LANE_OFFSET_M).straight(10.0)
+        builder = iso_double_lane_change(PathBuilder(), *course).straight(10.0)
         radius = _turn_radius(m.speed_mps, m.mu, m.ay_fraction)
         builder.arc(radius, -math.pi / 2.0)
         return np.zeros_like(t), np.ones(t.shape, bool), builder

@@ -22,6 +22,7 @@ from sideslip_sim.tire import TireParams
 from sideslip_sim.vehicle import VehicleParams
 
 DT_S = 0.0025  # 400 Hz, the paper's step
+_HANDOVER_STEPS = 120  # 0.3 s blend when the driver hands over to open-loop steering
 
 # Output channels of the compiled loop, one row per sample.
 O_U, O_V, O_R, O_AX, O_AY, O_STL, O_STL_RATE = 0, 1, 2, 3, 4, 5, 6
@@ -91,9 +92,9 @@ def _run(
 ) -> int:
     """Integrate steps k_start..k_end-1 from state x (in place), writing out[k - k_start].
 
-    carry = [path index, previous STL] links consecutive calls, so a batch run and a
-    node stepping one sample per call go through the same compiled code. Returns -1,
-    or the first step whose outputs are not finite.
+    carry = [path index, previous STL, hand-over offset, hand-over steps left] links
+    consecutive calls, so a batch run and a node stepping one sample per call go through
+    the same compiled code. Returns -1, or the first step whose outputs are not finite.
     """
     k1 = np.empty(dyn.N_STATE)
     aux = np.empty(dyn.N_AUX)
@@ -105,6 +106,8 @@ def _run(
     max_stl_step = driver_cfg[2] * ratio * dt
     path_index = int(carry[0])
     stl_prev = carry[1]
+    handover = carry[2]
+    handover_left = int(carry[3])
     for k in range(k_start, k_end):
         if use_driver[k]:
             delta_cmd, path_index = pure_pursuit(
@@ -126,7 +129,15 @@ def _run(
             elif stl < stl_prev - max_stl_step:
                 stl = stl_prev - max_stl_step
         else:
+            if k > 0 and use_driver[k - 1]:
+                # Driver hands over to an open-loop program: blend out the difference
+                # linearly instead of jumping the steering.
+                handover = stl_prev - stl_open[k]
+                handover_left = _HANDOVER_STEPS
             stl = stl_open[k]
+            if handover_left > 0:
+                stl += handover * handover_left / _HANDOVER_STEPS
+                handover_left -= 1
         stl_rate = (stl - stl_prev) / dt if k > 0 else 0.0
         stl_prev = stl
         delta_mean = dyn.road_wheel_angles(stl, p, steer)
@@ -156,6 +167,8 @@ def _run(
         dyn.rk4_step(x, dt, p, tc, steer, wheel_torque, mu, k1, work)
         carry[0] = path_index
         carry[1] = stl_prev
+        carry[2] = handover
+        carry[3] = handover_left
     return -1
 
 
@@ -205,7 +218,7 @@ def simulate(
     x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
     n = program.stl_open_m.shape[0]
     out = np.empty((n, N_OUT))
-    carry = np.array([0.0, program.stl_open_m[0] if n else 0.0])
+    carry = np.array([0.0, program.stl_open_m[0] if n else 0.0, 0.0, 0.0])
     bad = _run(
         x,
         carry,
@@ -275,7 +288,7 @@ class Stepper:
         self._driver_cfg = (driver or DriverParams()).as_array(understeer)
         self._x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
         n = self._program.stl_open_m.shape[0]
-        self._carry = np.array([0.0, self._program.stl_open_m[0] if n else 0.0])
+        self._carry = np.array([0.0, self._program.stl_open_m[0] if n else 0.0, 0.0, 0.0])
         self._row = np.empty((1, N_OUT))
         self.k = 0
 
