@@ -207,39 +207,9 @@ def simulate(
     driver: DriverParams | None = None,
 ) -> SimResult:
     """Simulate one manoeuvre and return its exact signals."""
-    prepared = prepare(vehicle, maneuver.payload_kg, maneuver.mu)
-    program = build_program(maneuver, prepared.vehicle, prepared.single_track, dt_s)
-    driver = driver or DriverParams()
-    # The driver's feed-forward uses the dry-road understeer gradient: a human driver's
-    # habit does not change with μ (it is why low-μ runs saturate the tyres).
-    understeer = SingleTrack.from_vehicle(
-        prepared.vehicle, prepared.tire
-    ).understeer_gradient_rad_per_mps2
-    x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
-    n = program.stl_open_m.shape[0]
-    out = np.empty((n, N_OUT))
-    carry = np.array([0.0, program.stl_open_m[0] if n else 0.0, 0.0, 0.0])
-    bad = _run(
-        x,
-        carry,
-        0,
-        n,
-        prepared.params,
-        prepared.tire_coef,
-        dt_s,
-        program.stl_open_m,
-        program.use_driver,
-        program.torque_nm,
-        float(maneuver.mu),
-        program.path_x_m,
-        program.path_y_m,
-        driver.as_array(understeer),
-        out,
-    )
-    if bad >= 0:
-        raise SimulationError(
-            f"{maneuver.name}: non-finite state at t = {bad * dt_s:.4f} s on {vehicle.name}"
-        )
+    stepper = Stepper(vehicle, maneuver, dt_s=dt_s, driver=driver)
+    n = len(stepper)
+    out = stepper.advance(n)
     return SimResult(
         maneuver=maneuver,
         vehicle_name=vehicle.name,
@@ -263,10 +233,11 @@ def simulate(
 
 
 class Stepper:
-    """One vehicle advanced one 2.5-ms sample per call: the sim node's path.
+    """One manoeuvre run advanced through the compiled loop in chunks of samples.
 
-    It runs the same compiled loop as `simulate` (one step per call), so a node and a
-    batch run of the same manoeuvre produce identical samples.
+    `simulate` advances it over the whole run at once; the sim node calls `step()` once
+    per 2.5-ms sample. Both go through the same compiled code, so they produce
+    identical samples.
     """
 
     def __init__(
@@ -279,9 +250,12 @@ class Stepper:
     ) -> None:
         prepared = prepare(vehicle, maneuver.payload_kg, maneuver.mu)
         self.maneuver = maneuver
+        self.vehicle_name = vehicle.name
         self.dt_s = dt_s
         self._prepared = prepared
         self._program = build_program(maneuver, prepared.vehicle, prepared.single_track, dt_s)
+        # The driver's feed-forward uses the dry-road understeer gradient: a human
+        # driver's habit does not change with μ (it is why low-μ runs saturate the tyres).
         understeer = SingleTrack.from_vehicle(
             prepared.vehicle, prepared.tire
         ).understeer_gradient_rad_per_mps2
@@ -299,16 +273,17 @@ class Stepper:
     def done(self) -> bool:
         return self.k >= len(self)
 
-    def step(self) -> np.ndarray:
-        """Advance one sample; returns its output row (see the O_* channel indices)."""
-        if self.done:
-            raise StopIteration(f"{self.maneuver.name}: all {len(self)} samples produced")
+    def advance(self, count: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Advance `count` samples; returns their output rows (O_* channel indices)."""
+        if self.k + count > len(self):
+            raise StopIteration(f"{self.maneuver.name}: only {len(self) - self.k} samples left")
+        rows = np.empty((count, N_OUT)) if out is None else out
         p = self._program
         bad = _run(
             self._x,
             self._carry,
             self.k,
-            self.k + 1,
+            self.k + count,
             self._prepared.params,
             self._prepared.tire_coef,
             self.dt_s,
@@ -319,9 +294,16 @@ class Stepper:
             p.path_x_m,
             p.path_y_m,
             self._driver_cfg,
-            self._row,
+            rows,
         )
         if bad >= 0:
-            raise SimulationError(f"{self.maneuver.name}: non-finite state at step {self.k}")
-        self.k += 1
-        return self._row[0]
+            raise SimulationError(
+                f"{self.maneuver.name}: non-finite state at t = {bad * self.dt_s:.4f} s "
+                f"on {self.vehicle_name}"
+            )
+        self.k += count
+        return rows
+
+    def step(self) -> np.ndarray:
+        """Advance one sample; returns its output row (a view, overwritten next call)."""
+        return self.advance(1, self._row)[0]

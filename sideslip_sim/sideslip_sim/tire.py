@@ -36,6 +36,8 @@ Deliberate departures from the full MF 5.2 (all such terms are still parsed and 
 
 Numba: every ``@njit`` function takes the packed array ``coef`` from
 :meth:`TireParams.coefficients`; index it with the ``I_<KEY>`` constants.
+:func:`combined_forces4` computes the four corners of a car in one call, vectorised
+(AVX2: one lane per corner); it gives the same forces as four :func:`combined_forces` calls.
 """
 
 from __future__ import annotations
@@ -45,7 +47,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from sideslip_sim.tir import TirError, TirFile, parse_tir
 
@@ -55,6 +59,7 @@ __all__ = [
     "SIGMA_MIN_M",
     "TireParams",
     "combined_forces",
+    "combined_forces4",
     "cornering_stiffness",
     "friction_coefficients",
     "longitudinal_stiffness",
@@ -505,6 +510,134 @@ def combined_forces(coef, fz_n, kappa, tan_alpha, mu_scale):
 
     scale = mu_scale * load_ratio
     return scale * g_xa * fx0, scale * g_yk * fy0
+
+
+# ------------------------------------------------------------- four corners at once
+#
+# combined_forces4 is the same model, written for LLVM's loop vectoriser: one SIMD lane per
+# corner, no branches that depend on a lane (clips are min/max, special cases selects), no
+# libm calls. What it takes to get the loop vectorised (check: inspect_asm shows ymm):
+# * Numba leaves LLVM's SLP vectoriser off (NUMBA_SLP_VECTORIZE=0), so four copies of
+#   straight-line code stay scalar; it has to be a `for i in range(4)` loop.
+# * A loop of known trip count 4 is vectorised only if it needs no run-time alias checks,
+#   and the caller's arrays may overlap. So the loop reads and writes only a private
+#   stack buffer (_scratch): inputs are copied in before it, results copied out after.
+# * The E-term of _mf_angle is always evaluated (x − 0·(x − atan x) is exactly x, so this
+#   changes no result), except that a tyre whose combined-slip curvatures REX*, REY* are all
+#   zero (most files) gets a second copy of the loop without those two atan.
+
+_SCRATCH_SIZE = 20  # [0:4] fx, [4:8] fy, [8:12] fz, [12:16] kappa, [16:20] tan_alpha
+
+
+@intrinsic
+def _scratch(typingctx):
+    """A float64 buffer of _SCRATCH_SIZE on the stack (entry-block alloca), as a pointer."""
+
+    def codegen(context, builder, signature, args):
+        return cgutils.alloca_once(
+            builder, context.get_value_type(types.float64), size=_SCRATCH_SIZE
+        )
+
+    return types.CPointer(types.float64)(), codegen
+
+
+@_inline
+def _mf_angle_lane(x, c, e, use_e):
+    """_mf_angle without a lane-dependent branch; use_e=False (a constant) drops the E-term."""
+    x = min(max(x, -_SLIP_ARG_MAX), _SLIP_ARG_MAX)
+    if use_e:
+        x = x - e * (x - _atan(x))
+    return c * _atan(x)
+
+
+@_inline
+def _forces_lanes(coef, buf, mu_scale, combined_e):
+    """combined_forces for the four corners in buf[8:20] → buf[0:8]; mu_scale > 0 or NaN."""
+    fnomin, lfzo = coef[I_FNOMIN], coef[I_LFZO]
+    pkx1, pkx2, pkx3, lkx = coef[I_PKX1], coef[I_PKX2], coef[I_PKX3], coef[I_LKX]
+    pdx1, pdx2, lmux = coef[I_PDX1], coef[I_PDX2], coef[I_LMUX]
+    pdy1, pdy2, lmuy = coef[I_PDY1], coef[I_PDY2], coef[I_LMUY]
+    c_x = coef[I_PCX1] * coef[I_LCX]
+    pex1, pex2, pex3, lex = coef[I_PEX1], coef[I_PEX2], coef[I_PEX3], coef[I_LEX]
+    c_y = coef[I_PCY1] * coef[I_LCY]
+    pey1, pey2, ley = coef[I_PEY1], coef[I_PEY2], coef[I_LEY]
+    pky1, pky2, lky = coef[I_PKY1], coef[I_PKY2], coef[I_LKY]
+    rbx1, rbx2, rcx1 = coef[I_RBX1] * coef[I_LXAL], coef[I_RBX2], coef[I_RCX1]
+    rex1, rex2 = coef[I_REX1], coef[I_REX2]
+    rby1, rby2, rcy1 = coef[I_RBY1] * coef[I_LYKA], coef[I_RBY2], coef[I_RCY1]
+    rey1, rey2 = coef[I_REY1], coef[I_REY2]
+    fz_lifted = fnomin * lfzo  # any positive load: a lifted lane computes, then gets 0
+
+    for i in range(4):
+        fz_n = buf[8 + i]
+        lifted = fz_n <= 0.0  # False for NaN: NaN goes through, as in combined_forces
+        fz_n = fz_lifted if lifted else fz_n
+        fz0, dfz, fz_shape, load_ratio = _load_state(fnomin, lfzo, fz_n)
+        k_x = _kx(pkx1, pkx2, pkx3, lkx, fz_shape, dfz)
+        kappa = buf[12 + i] / mu_scale
+        tan_alpha = buf[16 + i] / mu_scale
+
+        # From here on the same expressions as combined_forces, in the same order.
+        d_x = _mu(pdx1, pdx2, lmux, dfz) * fz_shape
+        e_x = min((pex1 + (pex2 + pex3 * dfz) * dfz) * lex, 1.0)
+        b_x = k_x / (c_x * d_x + _EPS)
+        fx0 = d_x * _sin(_mf_angle_lane(b_x * kappa, c_x, e_x, True))
+
+        d_y = _mu(pdy1, pdy2, lmuy, dfz) * fz_shape
+        e_y = min((pey1 + pey2 * dfz) * ley, 1.0)
+        b_y = _ky(pky1, pky2, lky, fz0, fz_shape) / (c_y * d_y + _EPS)
+        fy0 = d_y * _sin(_mf_angle_lane(b_y * tan_alpha, c_y, e_y, True))
+
+        r = rbx2 * kappa
+        b_xa = rbx1 / math.sqrt(1.0 + r * r)
+        e_xa = min(rex1 + rex2 * dfz, 1.0)
+        g_xa = max(_cos(_mf_angle_lane(b_xa * tan_alpha, rcx1, e_xa, combined_e)), 0.0)
+        r = rby2 * tan_alpha
+        b_yk = rby1 / math.sqrt(1.0 + r * r)
+        e_yk = min(rey1 + rey2 * dfz, 1.0)
+        g_yk = max(_cos(_mf_angle_lane(b_yk * kappa, rcy1, e_yk, combined_e)), 0.0)
+
+        scale = mu_scale * load_ratio
+        fx = scale * g_xa * fx0
+        fy = scale * g_yk * fy0
+        buf[i] = 0.0 if lifted else fx
+        buf[4 + i] = 0.0 if lifted else fy
+
+
+@_kernel
+def combined_forces4(coef, fz_n, kappa, tan_alpha, mu_scale, fx_out, fy_out):
+    """:func:`combined_forces` for four tyres at once, SIMD-vectorised over the four.
+
+    fz_n, kappa, tan_alpha: float64 arrays of length 4 (one entry per corner; any layout,
+    they are read before anything is written, so they may share memory with the outputs);
+    mu_scale: one road friction scale for all four. Writes fx_out[i], fy_out[i] [N] (float64
+    arrays of length ≥ 4). Same results as four combined_forces calls, to rounding
+    (the operations are the same; FMA contraction may differ by an ulp between the scalar
+    and the vector code), same special cases: fz ≤ 0 or mu_scale ≤ 0 → exactly 0, NaN in →
+    NaN out.
+    """
+    combined_e = (
+        coef[I_REX1] != 0.0 or coef[I_REX2] != 0.0 or coef[I_REY1] != 0.0 or coef[I_REY2] != 0.0
+    )
+    if mu_scale <= 0.0:
+        for i in range(4):
+            fx_out[i] = 0.0
+            fy_out[i] = 0.0
+        return
+    buf = _scratch()
+    for i in range(4):
+        buf[8 + i] = fz_n[i]
+        buf[12 + i] = kappa[i]
+        buf[16 + i] = tan_alpha[i]
+    # Two copies of the loop; the flag is a constant inside each, so LLVM drops the dead
+    # E-term code from the second.
+    if combined_e:
+        _forces_lanes(coef, buf, mu_scale, True)
+    else:
+        _forces_lanes(coef, buf, mu_scale, False)
+    for i in range(4):
+        fx_out[i] = buf[i]
+        fy_out[i] = buf[4 + i]
 
 
 @_kernel
