@@ -222,3 +222,24 @@ def test_stepper_reproduces_the_batch_run_sample_for_sample():
     np.testing.assert_array_equal(rows[:, O_V], batch.v_mps)
     np.testing.assert_array_equal(rows[:, O_AY], batch.ay_mps2)
     np.testing.assert_array_equal(rows[:, O_STL], batch.stl_m)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    speed_kmh=st.floats(15.0, 120.0),
+    amplitude=st.floats(0.005, 0.1),
+    mu=st.floats(0.3, 1.0),
+    family=st.sampled_from(["sine_steer", "step_steer", "sweep_steer", "cornering"]),
+    vehicle_name=st.sampled_from(VEHICLES),
+)
+def test_any_mirrored_manoeuvre_gives_an_exactly_mirrored_response(
+    speed_kmh, amplitude, mu, family, vehicle_name
+):
+    vehicle = load_vehicle(vehicle_name)
+    kwargs = {"duration_s": 3.0, "speed_kmh": speed_kmh, "torque_nm": 200.0, "mu": mu}
+    left = simulate(vehicle, Maneuver("l", family, stl_amplitude_m=amplitude, **kwargs))
+    right = simulate(vehicle, Maneuver("r", family, stl_amplitude_m=-amplitude, **kwargs))
+    scale = max(np.max(np.abs(left.beta_rad)), 1e-9)
+    assert np.max(np.abs(left.beta_rad + right.beta_rad)) <= 1e-6 * scale + 1e-12
+    np.testing.assert_allclose(left.yaw_rate_radps, -right.yaw_rate_radps, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(left.fz_n[:, [0, 2]], right.fz_n[:, [1, 3]], rtol=1e-9)
