@@ -237,6 +237,74 @@ def test_mu_scale_scales_the_peak_force_and_the_peak_slip(mu):
     assert math.tan(alpha_peak_mu) == pytest.approx(mu * math.tan(alpha_peak), abs=2e-3)
 
 
+# ------------------------------------------------------------ four corners at once
+
+# Combined-slip curvatures non-zero (the shipped tyre has REX*, REY* = 0, which takes the
+# other copy of the loop) and PEX* = 0 (E = 0: the scalar code skips that term).
+COEF_CURVED = PARAMS.with_values(
+    REX1=0.3, REX2=-0.2, REY1=0.1, REY2=0.4, PEX1=0.0, PEX2=0.0, PEX3=0.0, RCX1=2.0
+).coefficients()
+wide_loads = st.one_of(
+    st.floats(min_value=-1e4, max_value=3.0 * FZ0),
+    st.floats(min_value=-1e9, max_value=1e9),
+    st.sampled_from([0.0, -0.0, -1.0, 1e-300, 5e-324, 4.0 * FZ0, 1e12]),
+)
+wide_slips = st.one_of(
+    st.floats(min_value=-3.0, max_value=3.0),
+    st.floats(min_value=-1e12, max_value=1e12),
+    st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300]),
+)
+wide_mus = st.one_of(
+    st.floats(min_value=-1.0, max_value=3.0),
+    st.floats(min_value=1e-9, max_value=1e3),
+    st.sampled_from([0.0, -0.0, -1e-300, 1e-300, 1e-9, 1.0, 1e3]),
+)
+
+
+def same_force(got, want):
+    if math.isnan(want):
+        return math.isnan(got)
+    return abs(got - want) <= 1e-12 * abs(want) + 1e-9
+
+
+@given(
+    fz=st.lists(wide_loads, min_size=4, max_size=4),
+    kappa=st.lists(wide_slips, min_size=4, max_size=4),
+    tan_alpha=st.lists(wide_slips, min_size=4, max_size=4),
+    mu=wide_mus,
+    curved=st.booleans(),
+)
+@settings(max_examples=500)
+def test_combined_forces4_equals_four_scalar_calls(fz, kappa, tan_alpha, mu, curved):
+    coef = COEF_CURVED if curved else COEF
+    fx, fy = np.full(4, np.nan), np.full(4, np.nan)
+    tire.combined_forces4(coef, np.array(fz), np.array(kappa), np.array(tan_alpha), mu, fx, fy)
+    for i in range(4):
+        want_x, want_y = tire.combined_forces(coef, fz[i], kappa[i], tan_alpha[i], mu)
+        assert same_force(fx[i], want_x) and same_force(fy[i], want_y), (i, fx[i], fy[i])
+        if fz[i] <= 0.0 or mu <= 0.0:
+            assert fx[i] == 0.0 and fy[i] == 0.0
+
+
+def test_combined_forces4_takes_strided_and_overlapping_arrays():
+    fz = np.array([3000.0, 0.0, -5.0, 8000.0])
+    kappa = np.array([0.05, -0.2, 0.1, -2.0])
+    tan_alpha = np.array([-0.1, 0.02, 0.3, 0.5])
+    want = [
+        tire.combined_forces(COEF, *args, 0.7) for args in zip(fz, kappa, tan_alpha, strict=True)
+    ]
+    strided = np.zeros((3, 8))
+    strided[:, ::2] = fz, kappa, tan_alpha
+    fx, fy = np.zeros(4), np.zeros(4)
+    tire.combined_forces4(COEF, strided[0, ::2], strided[1, ::2], strided[2, ::2], 0.7, fx, fy)
+    inout = np.concatenate([fz, kappa, tan_alpha])  # fx over kappa, fy over fz
+    tire.combined_forces4(COEF, inout[:4], inout[4:8], inout[8:], 0.7, inout[4:8], inout[:4])
+    for i, (want_x, want_y) in enumerate(want):
+        assert same_force(fx[i], want_x) and same_force(fy[i], want_y)
+        assert inout[4 + i] == fx[i] and inout[i] == fy[i]
+    assert fx[1] == fx[2] == fy[1] == fy[2] == 0.0
+
+
 # ------------------------------------------------------------ inline kernels
 
 
