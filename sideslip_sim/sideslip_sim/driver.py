@@ -102,7 +102,7 @@ def iso_double_lane_change(
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
 def pure_pursuit(
     x_m: float,
     y_m: float,

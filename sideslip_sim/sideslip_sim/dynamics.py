@@ -115,7 +115,8 @@ P_FRR = 34  # rolling-resistance coefficient [-]
 N_PARAM = 35
 
 # Slip-velocity floor in the relaxation equations [m/s]: a standing tyre still relaxes
-# (decays) its deflection instead of acting as an undamped spring.
+# (decays) its deflection instead of acting as an undamped spring; a floor (not an
+# offset) leaves the steady-state slip exact above 0.1 m/s.
 _V_RELAX_FLOOR = 0.1
 # Wheel speed over which rolling resistance fades in [rad/s] (smooth sign at standstill).
 _OMEGA_RR_SCALE = 1.0
@@ -175,7 +176,7 @@ def pack_params(
 N_STEER = 12  # steer array: angles δ_i, then cos δ_i, then sin δ_i (held over a step)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
 def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
     """Road-wheel angles from STL into out (N_STEER: δ_i, cos δ_i, sin δ_i); returns δ.
 
@@ -207,7 +208,7 @@ def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
     return delta
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
 def rhs(
     x: np.ndarray,
     p: np.ndarray,
@@ -290,7 +291,7 @@ def rhs(
         vcy = -vx * sd + vy * cd
 
         sigma_kappa, sigma_alpha = relaxation_lengths(tc, fz_i)
-        speed = abs(vcx) + _V_RELAX_FLOOR
+        speed = max(abs(vcx), _V_RELAX_FLOOR)
         dx[S_TANA + i] = (-vcy - speed * x[S_TANA + i]) / sigma_alpha
         dx[S_KAPPA + i] = (x[S_OMEGA + i] * rw - vcx - speed * x[S_KAPPA + i]) / sigma_kappa
 
@@ -377,26 +378,49 @@ def rhs(
     dx[S_P] = phi_ddot
     dx[S_Q] = theta_ddot
 
-    # Unsprung masses: tyre force up, suspension force down, and the geometric
-    # (roll-centre) load transfer that the links pass straight to the wheels.
-    geo_f = fy_front * p[P_HRC_F] / p[P_TF]
-    geo_r = fy_rear * p[P_HRC_R] / p[P_TR]
+    # Unsprung masses: tyre force up, suspension force down, and the load transfer that
+    # bypasses the springs: the links carry the sprung share of each axle's lateral
+    # force at roll-centre height (geometric transfer); the unsprung masses' own
+    # inertia acts at wheel-centre height, laterally per axle and longitudinally
+    # between the axles. The unsprung masses do not roll, so their acceleration is
+    # that of the chassis reference point.
+    ay_ref = v_dot + u * r
+    ax_ref = u_dot - v * r
+    m_u_f = 2.0 * p[P_MU_F]
+    m_u_r = 2.0 * p[P_MU_R]
+    geo_f = ((fy_front - m_u_f * ay_ref) * p[P_HRC_F] + m_u_f * ay_ref * rw) / p[P_TF]
+    geo_r = ((fy_rear - m_u_r * ay_ref) * p[P_HRC_R] + m_u_r * ay_ref * rw) / p[P_TR]
+    pitch_unsprung = (m_u_f + m_u_r) * ax_ref * rw / (2.0 * (a + b))  # per wheel
     for i in range(4):
         front = i < 2
         fz0 = p[P_FZ0_F] if front else p[P_FZ0_R]
         mu_i = p[P_MU_F] if front else p[P_MU_R]
         geo = geo_f if front else geo_r
         push_down = -geo if i % 2 == 0 else geo  # outer (right in a left turn) loads up
+        push_down += -pitch_unsprung if front else pitch_unsprung  # rear loads up under drive
         dx[S_ZU + i] = x[S_ZUD + i]
         dx[S_ZUD + i] = (
             (fz[i] - fz0) - body_force[i] - push_down
         ) / mu_i  # reads, then writes slot i
 
-    aux[A_AX] = u_dot - v * r
-    aux[A_AY] = v_dot + u * r
+    # Acceleration of the whole-vehicle CG (sprung mass rolling/pitching included).
+    aux[A_AX] = sum_fx / m
+    aux[A_AY] = sum_fy / m
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
+def cg_velocity(x: np.ndarray, p: np.ndarray) -> tuple[float, float]:
+    """(u, v) of the whole-vehicle CG in the vehicle frame [m/s].
+
+    The states u, v belong to the chassis reference point (the static CG position,
+    which does not roll or pitch); the sprung mass's CG moves relative to it by
+    −h'·φ̇ sideways and +h_s·θ̇ forwards, so the whole CG by (m_s/m) of that.
+    """
+    share = p[P_MS] / p[P_M]
+    return (x[S_U] + share * p[P_HS] * x[S_Q], x[S_V] - share * p[P_HRA] * x[S_P])
+
+
+@njit(cache=True, error_model="numpy")
 def wheel_torques(total_torque: float, p: np.ndarray, out: np.ndarray) -> None:
     """Split the manoeuvre's total wheel torque [N m]: axle by layout, open differential."""
     front = p[P_FRONT_DRIVE] * total_torque
@@ -406,7 +430,7 @@ def wheel_torques(total_torque: float, p: np.ndarray, out: np.ndarray) -> None:
     out[3] = 0.5 * (total_torque - front)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
 def rk4_step(
     x: np.ndarray,
     dt: float,

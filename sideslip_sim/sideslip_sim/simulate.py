@@ -72,7 +72,7 @@ class SimResult:
         return int(self.t_s.shape[0])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy")
 def _run(
     x: np.ndarray,
     carry: np.ndarray,
@@ -145,8 +145,7 @@ def _run(
         dyn.rhs(x, p, tc, steer, wheel_torque, mu, k1, aux)
 
         row = out[k - k_start]
-        row[O_U] = x[dyn.S_U]
-        row[O_V] = x[dyn.S_V]
+        row[O_U], row[O_V] = dyn.cg_velocity(x, p)
         row[O_R] = x[dyn.S_R]
         row[O_AX] = aux[dyn.A_AX]
         row[O_AY] = aux[dyn.A_AY]

@@ -201,9 +201,9 @@ _SI_UNITS = {
 
 # All numerical kernels: numpy error model (a zero divisor gives inf/nan, never raises inside
 # an integrator) and FMA contraction (faster and at least as accurate; sign symmetric).
-_kernel = njit(cache=True, error_model="numpy", fastmath={"contract"})
+_kernel = njit(cache=True, error_model="numpy")
 # Private helpers are inlined at numba-IR level, so each public kernel is one function.
-_inline = njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+_inline = njit(cache=True, error_model="numpy", inline="always")
 
 SIGMA_MIN_M = 0.05  # floor of the relaxation lengths; also what a lifted wheel gets [m]
 _DFZ_MAX = 3.0  # load dependence frozen beyond Fz = (1 + _DFZ_MAX)·Fz0'
