@@ -208,26 +208,26 @@ def simulate(
     """Simulate one manoeuvre and return its exact signals."""
     stepper = Stepper(vehicle, maneuver, dt_s=dt_s, driver=driver)
     n = len(stepper)
-    out = stepper.advance(n)
+    cols = stepper.advance(n).T.copy()  # one copy: each channel becomes contiguous
     return SimResult(
         maneuver=maneuver,
         vehicle_name=vehicle.name,
         t_s=np.arange(n) * dt_s,
-        u_mps=out[:, O_U].copy(),
-        v_mps=out[:, O_V].copy(),
-        yaw_rate_radps=out[:, O_R].copy(),
-        ax_mps2=out[:, O_AX].copy(),
-        ay_mps2=out[:, O_AY].copy(),
-        stl_m=out[:, O_STL].copy(),
-        stl_rate_mps=out[:, O_STL_RATE].copy(),
-        x_m=out[:, O_X].copy(),
-        y_m=out[:, O_Y].copy(),
-        psi_rad=out[:, O_PSI].copy(),
-        roll_rad=out[:, O_PHI].copy(),
-        pitch_rad=out[:, O_THETA].copy(),
-        delta_rad=out[:, O_DELTA].copy(),
-        fz_n=out[:, O_FZ : O_FZ + 4].copy(),
-        omega_radps=out[:, O_OMEGA : O_OMEGA + 4].copy(),
+        u_mps=cols[O_U],
+        v_mps=cols[O_V],
+        yaw_rate_radps=cols[O_R],
+        ax_mps2=cols[O_AX],
+        ay_mps2=cols[O_AY],
+        stl_m=cols[O_STL],
+        stl_rate_mps=cols[O_STL_RATE],
+        x_m=cols[O_X],
+        y_m=cols[O_Y],
+        psi_rad=cols[O_PSI],
+        roll_rad=cols[O_PHI],
+        pitch_rad=cols[O_THETA],
+        delta_rad=cols[O_DELTA],
+        fz_n=cols[O_FZ : O_FZ + 4].T,
+        omega_radps=cols[O_OMEGA : O_OMEGA + 4].T,
     )
 
 
