@@ -34,7 +34,12 @@ import math
 import numpy as np
 from numba import njit
 
-from sideslip_sim.tire import combined_forces4, relaxation_lengths, rolling_resistance_coefficient
+from sideslip_sim.tire import (
+    TireParams,
+    combined_forces4,
+    relaxation_lengths,
+    rolling_resistance_coefficient,
+)
 from sideslip_sim.vehicle import GRAVITY_MPS2, VehicleParams
 
 # ---- state layout (index, symbol, unit) ---------------------------------------------
@@ -122,12 +127,7 @@ _V_RELAX_FLOOR = 0.1
 _OMEGA_RR_SCALE = 1.0
 
 
-def pack_params(
-    vehicle: VehicleParams,
-    tire_vertical_stiffness: float,
-    tire_vertical_damping: float,
-    tire_coef: np.ndarray,
-) -> np.ndarray:
+def pack_params(vehicle: VehicleParams, tire: TireParams) -> np.ndarray:
     """Pack a vehicle (and the tyre's vertical/rolling properties) for the compiled model."""
     p = np.zeros(N_PARAM)
     L = vehicle.wheelbase_m
@@ -158,8 +158,8 @@ def pack_params(
     p[P_IW_F] = vehicle.wheel_spin_inertia_front_kgm2
     p[P_IW_R] = vehicle.wheel_spin_inertia_rear_kgm2
     p[P_RW] = vehicle.tire_rolling_radius_m
-    p[P_KT] = tire_vertical_stiffness
-    p[P_CT] = tire_vertical_damping
+    p[P_KT] = tire.vertical_stiffness_n_per_m
+    p[P_CT] = tire.vertical_damping_ns_per_m
     p[P_FZ0_F] = 0.5 * vehicle.static_axle_load_front_n
     p[P_FZ0_R] = 0.5 * vehicle.static_axle_load_rear_n
     p[P_HALF_RHO_CDA] = (
@@ -169,7 +169,7 @@ def pack_params(
     p[P_STL_RATIO] = vehicle.stl_per_road_wheel_angle_m_per_rad
     p[P_ACKERMANN] = vehicle.ackermann_fraction
     p[P_MAX_DELTA] = vehicle.max_road_wheel_angle_rad
-    p[P_FRR] = rolling_resistance_coefficient(tire_coef)
+    p[P_FRR] = rolling_resistance_coefficient(tire.coefficients())
     return p
 
 

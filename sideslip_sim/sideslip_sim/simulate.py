@@ -188,14 +188,12 @@ class PreparedVehicle:
     single_track: SingleTrack
 
 
-def prepare(vehicle: VehicleParams, payload_kg: float = 0.0, mu: float = 1.0) -> PreparedVehicle:
+def prepare(vehicle: VehicleParams, payload_kg: float = 0.0) -> PreparedVehicle:
     loaded = with_payload(vehicle, payload_kg)
     tire = load_tire(str(loaded.tire_path()))
     coef = tire.coefficients()
-    params = dyn.pack_params(
-        loaded, tire.vertical_stiffness_n_per_m, tire.vertical_damping_ns_per_m, coef
-    )
-    return PreparedVehicle(loaded, tire, coef, params, SingleTrack.from_vehicle(loaded, tire, mu))
+    params = dyn.pack_params(loaded, tire)
+    return PreparedVehicle(loaded, tire, coef, params, SingleTrack.from_vehicle(loaded, tire))
 
 
 def simulate(
@@ -247,17 +245,16 @@ class Stepper:
         dt_s: float = DT_S,
         driver: DriverParams | None = None,
     ) -> None:
-        prepared = prepare(vehicle, maneuver.payload_kg, maneuver.mu)
+        prepared = prepare(vehicle, maneuver.payload_kg)
         self.maneuver = maneuver
         self.vehicle_name = vehicle.name
         self.dt_s = dt_s
         self._prepared = prepared
         self._program = build_program(maneuver, prepared.vehicle, prepared.single_track, dt_s)
-        # The driver's feed-forward uses the dry-road understeer gradient: a human
-        # driver's habit does not change with μ (it is why low-μ runs saturate the tyres).
-        understeer = SingleTrack.from_vehicle(
-            prepared.vehicle, prepared.tire
-        ).understeer_gradient_rad_per_mps2
+        # The linear model (and so the driver's understeer feed-forward) is the dry-road
+        # one: cornering stiffness does not depend on μ, and a human driver's habit does
+        # not change with it either (it is why low-μ runs saturate the tyres).
+        understeer = prepared.single_track.understeer_gradient_rad_per_mps2
         self._driver_cfg = (driver or DriverParams()).as_array(understeer)
         self._x = dyn.initial_state(maneuver.speed_mps, prepared.vehicle.tire_rolling_radius_m)
         n = self._program.stl_open_m.shape[0]

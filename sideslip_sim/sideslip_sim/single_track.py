@@ -29,7 +29,7 @@ class SingleTrack:
     c_rear_n_per_rad: float
 
     @classmethod
-    def from_vehicle(cls, vehicle: VehicleParams, tire: TireParams, mu: float = 1.0) -> SingleTrack:
+    def from_vehicle(cls, vehicle: VehicleParams, tire: TireParams) -> SingleTrack:
         coef = tire.coefficients()
         fz_f = 0.5 * vehicle.static_axle_load_front_n
         fz_r = 0.5 * vehicle.static_axle_load_rear_n
@@ -38,8 +38,8 @@ class SingleTrack:
             yaw_inertia_kgm2=vehicle.yaw_inertia_kgm2,
             a_m=vehicle.cg_to_front_axle_m,
             b_m=vehicle.cg_to_rear_axle_m,
-            c_front_n_per_rad=2.0 * cornering_stiffness(coef, fz_f, mu),
-            c_rear_n_per_rad=2.0 * cornering_stiffness(coef, fz_r, mu),
+            c_front_n_per_rad=2.0 * cornering_stiffness(coef, fz_f),
+            c_rear_n_per_rad=2.0 * cornering_stiffness(coef, fz_r),
         )
 
     @property
