@@ -1,5 +1,7 @@
 """ament_python package: colcon builds it, pip installs it."""
 
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = "sideslip_estimator"
@@ -8,15 +10,23 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "tests"]),
+    package_data={PACKAGE: ["data/single_track/*.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
-    install_requires=["numpy", "sideslip_msgs_py"],
+    install_requires=["numpy", "PyYAML", "sideslip_msgs_py"],
     zip_safe=False,
     maintainer="sideslip maintainers",
     maintainer_email="maintainers@sideslip.invalid",
     description="Sideslip-angle estimator node and model back-ends.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={
+        "console_scripts": [
+            "estimator_node = sideslip_estimator.node:main",
+            "sideslip-estimator = sideslip_estimator.node:main",
+        ],
+    },
 )

@@ -1,13 +1,14 @@
 """Install sideslip_msgs_py with setuptools (colcon's ament_python and pip both use this)."""
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
 PACKAGE = "sideslip_msgs_py"
 
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=[PACKAGE],
+    # find_packages, not [PACKAGE]: the rclpy plumbing lives in the sub-package `nodes`.
+    packages=find_packages(exclude=["test", "tests"]),
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

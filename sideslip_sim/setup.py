@@ -16,6 +16,8 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/vehicles", glob(f"{PACKAGE}/data/vehicles/*.yaml")),
         (f"share/{PACKAGE}/tires", glob(f"{PACKAGE}/data/tires/*.tir")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
     install_requires=["numpy", "numba", "PyYAML", "tqdm", "rosbags", "sideslip_msgs_py"],
     zip_safe=False,
@@ -26,6 +28,11 @@ setup(
     entry_points={
         "console_scripts": [
             "sideslip-generate = sideslip_sim.generate:main",
+            # `ros2 run sideslip_sim sim_node` and the pip console script are one program.
+            "sim_node = sideslip_sim.node:main",
+            "sideslip-sim = sideslip_sim.node:main",
+            "sideslip-record = sideslip_sim.tools.record:main",
+            "sideslip-play = sideslip_sim.tools.play:main",
         ],
     },
 )

@@ -65,6 +65,16 @@ class MessageFactory(Protocol):
     Vector3: Any
     Quaternion: Any
     Twist: Any
+    TwistWithCovariance: Any
+    TwistWithCovarianceStamped: Any
+    DiagnosticArray: Any
+    DiagnosticStatus: Any
+    KeyValue: Any
+    Clock: Any
+
+    def diagnostic_level(self, level: int) -> Any:
+        """DiagnosticStatus.level in the back-end's representation of ROS ``byte``."""
+        ...
 
 
 class RclpyMessages:
@@ -73,7 +83,16 @@ class RclpyMessages:
     def __init__(self) -> None:
         # Imported here so that the package imports on machines without ROS.
         from builtin_interfaces.msg import Time
-        from geometry_msgs.msg import Quaternion, Twist, TwistStamped, Vector3
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+        from geometry_msgs.msg import (
+            Quaternion,
+            Twist,
+            TwistStamped,
+            TwistWithCovariance,
+            TwistWithCovarianceStamped,
+            Vector3,
+        )
+        from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import Imu, JointState
         from std_msgs.msg import Float64, Header
 
@@ -86,6 +105,16 @@ class RclpyMessages:
         self.Vector3 = Vector3
         self.Quaternion = Quaternion
         self.Twist = Twist
+        self.TwistWithCovariance = TwistWithCovariance
+        self.TwistWithCovarianceStamped = TwistWithCovarianceStamped
+        self.DiagnosticArray = DiagnosticArray
+        self.DiagnosticStatus = DiagnosticStatus
+        self.KeyValue = KeyValue
+        self.Clock = Clock
+
+    def diagnostic_level(self, level: int) -> bytes:
+        # rosidl maps the ROS `byte` type to a 1-byte bytes object.
+        return bytes([level])
 
 
 class TypestoreMessages:
@@ -107,6 +136,16 @@ class TypestoreMessages:
         self.Vector3 = types["geometry_msgs/msg/Vector3"]
         self.Quaternion = types["geometry_msgs/msg/Quaternion"]
         self.Twist = types["geometry_msgs/msg/Twist"]
+        self.TwistWithCovariance = types["geometry_msgs/msg/TwistWithCovariance"]
+        self.TwistWithCovarianceStamped = types[topics.TWIST_WITH_COVARIANCE_STAMPED_TYPE]
+        self.DiagnosticArray = types[topics.DIAGNOSTIC_ARRAY_TYPE]
+        self.DiagnosticStatus = types["diagnostic_msgs/msg/DiagnosticStatus"]
+        self.KeyValue = types["diagnostic_msgs/msg/KeyValue"]
+        self.Clock = types[topics.CLOCK_TYPE]
+
+    def diagnostic_level(self, level: int) -> int:
+        # rosbags maps the ROS `byte` type to an int.
+        return int(level)
 
 
 # --- covariances -----------------------------------------------------------------------------
@@ -198,6 +237,84 @@ def sample_to_messages(
         )
         out[topics.GROUND_TRUTH_SIDESLIP] = factory.Float64(data=t.beta_rad)
     return out
+
+
+# --- estimator outputs and clock ---------------------------------------------------------------
+
+DIAGNOSTIC_OK: Final = 0
+DIAGNOSTIC_WARN: Final = 1
+DIAGNOSTIC_ERROR: Final = 2
+DIAGNOSTIC_STALE: Final = 3
+"""diagnostic_msgs/DiagnosticStatus levels."""
+
+
+def sideslip_message(factory: MessageFactory, beta_rad: float) -> Any:
+    """``/sideslip``: std_msgs/Float64 with the estimated β [rad]."""
+    return factory.Float64(data=float(beta_rad))
+
+
+def sideslip_twist_message(
+    factory: MessageFactory,
+    stamp_ns: int,
+    v_x_mps: float,
+    beta_rad: float,
+    beta_variance_rad2: float,
+    v_x_variance_m2ps2: float,
+) -> Any:
+    """``/sideslip/twist``: v_x and v_y = v_x·tan β̂ with covariance, stamped with the input.
+
+    Covariance (row-major 6×6 over x, y, z, roll, pitch, yaw of the twist): var(v_x)
+    as given; var(v_y) by first-order propagation of v_y = v_x tan β,
+    (v_x sec²β)²·var(β) + tan²β·var(v_x); cov(v_x, v_y) = tan β·var(v_x). The four
+    components the estimator does not provide (v_z and the angular rates) carry
+    :data:`UNMEASURED_VARIANCE`, so robot_localization gives them no weight.
+    """
+    tan_b = float(np.tan(beta_rad))
+    sec2 = 1.0 + tan_b * tan_b
+    var_vy = (v_x_mps * sec2) ** 2 * beta_variance_rad2 + tan_b * tan_b * v_x_variance_m2ps2
+    cov = np.zeros((6, 6))
+    cov[0, 0] = v_x_variance_m2ps2
+    cov[1, 1] = var_vy
+    cov[0, 1] = cov[1, 0] = tan_b * v_x_variance_m2ps2
+    for i in range(2, 6):
+        cov[i, i] = UNMEASURED_VARIANCE
+    twist = factory.Twist(
+        linear=_vector3(factory, v_x_mps, v_x_mps * tan_b), angular=_vector3(factory)
+    )
+    return factory.TwistWithCovarianceStamped(
+        header=header(factory, stamp_ns),
+        twist=factory.TwistWithCovariance(twist=twist, covariance=cov.ravel()),
+    )
+
+
+def status_message(
+    factory: MessageFactory,
+    stamp_ns: int,
+    *,
+    level: int,
+    name: str,
+    message: str,
+    hardware_id: str,
+    values: Mapping[str, object],
+) -> Any:
+    """``/sideslip/status``: a DiagnosticArray holding one DiagnosticStatus.
+
+    ``values`` become KeyValue pairs (``str()`` of each value, in the given order).
+    """
+    status = factory.DiagnosticStatus(
+        level=factory.diagnostic_level(level),
+        name=name,
+        message=message,
+        hardware_id=hardware_id,
+        values=[factory.KeyValue(key=str(k), value=str(v)) for k, v in values.items()],
+    )
+    return factory.DiagnosticArray(header=header(factory, stamp_ns, frame_id=""), status=[status])
+
+
+def clock_message(factory: MessageFactory, stamp_ns: int) -> Any:
+    """``/clock``: rosgraph_msgs/Clock holding the simulated time [ns]."""
+    sec, nanosec = stamp_to_sec_nanosec(stamp_ns)
+    return factory.Clock(clock=factory.Time(sec=sec, nanosec=nanosec))
 
 
 # --- messages -> fields ------------------------------------------------------------------------

@@ -9,6 +9,7 @@ Axle cornering stiffness = 2 × the tyre's dFy/dα at the static corner load (N/
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,3 +76,54 @@ class SingleTrack:
     def lateral_acceleration_gain(self, speed_mps: float) -> float:
         """Steady-state a_y/δ [m/s^2 per rad] = u · r/δ."""
         return speed_mps * self.steady_state(speed_mps)[1]
+
+
+def estimator_parameters(vehicle: VehicleParams, tire: TireParams) -> dict[str, float | str]:
+    """The estimator's ``single_track`` back-end parameters for this vehicle.
+
+    The estimator does not import the simulator (DESIGN.md), so its observer reads
+    these numbers from a YAML file; this function writes the shipped ones and lets a
+    user make one for their own vehicle file (``python -m sideslip_sim.single_track``).
+    """
+    model = SingleTrack.from_vehicle(vehicle, tire)
+    return {
+        "name": vehicle.name,
+        "mass_kg": model.mass_kg,
+        "yaw_inertia_kgm2": model.yaw_inertia_kgm2,
+        "cg_to_front_axle_m": model.a_m,
+        "cg_to_rear_axle_m": model.b_m,
+        "cornering_stiffness_front_n_per_rad": round(model.c_front_n_per_rad, 1),
+        "cornering_stiffness_rear_n_per_rad": round(model.c_rear_n_per_rad, 1),
+        "stl_per_road_wheel_angle_m_per_rad": vehicle.stl_per_road_wheel_angle_m_per_rad,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the single-track observer parameters of a vehicle as YAML."""
+    import argparse
+
+    import yaml
+
+    from sideslip_sim.simulate import load_tire
+    from sideslip_sim.vehicle import VehicleFileError, load_vehicle
+
+    parser = argparse.ArgumentParser(
+        prog="python -m sideslip_sim.single_track",
+        description="Print the estimator's single_track parameters (YAML) for a vehicle: "
+        "linear bicycle model with axle cornering stiffness at the static loads.",
+    )
+    parser.add_argument("vehicle", help="shipped vehicle name or path to a vehicle YAML")
+    args = parser.parse_args(argv)
+    try:
+        vehicle = load_vehicle(args.vehicle)
+        params = estimator_parameters(vehicle, load_tire(str(vehicle.tire_path())))
+    except (VehicleFileError, OSError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"# single-track parameters of {vehicle.name} (python -m sideslip_sim.single_track)")
+    print(yaml.safe_dump(params, sort_keys=False), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,225 @@
+"""The estimator node: sensor topics in, /sideslip, /sideslip/twist, /sideslip/status out.
+
+Plumbing only: messages are decoded through the contract's field mapping and handed
+to :class:`~sideslip_estimator.estimator.Estimator`; what it returns is published.
+Inputs use the sensor-data QoS (keep last 5): when messages arrive faster than the
+node processes them, DDS drops the oldest, the gaps in IMU stamps are counted as
+dropped samples, and latency stays bounded by that short queue.
+``ros2 run sideslip_estimator estimator_node`` and the pip console script
+``sideslip-estimator`` are this module's ``main``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy.node
+
+from sideslip_estimator.backends import BackendError, backend_factory
+from sideslip_estimator.estimator import Estimator
+from sideslip_estimator.inputs import InputRejected
+from sideslip_estimator.parameters import PARAMETERS, estimator_params
+from sideslip_estimator.status import Observation, assess
+from sideslip_msgs_py import topics
+from sideslip_msgs_py.errors import MessageFieldError
+from sideslip_msgs_py.messages import (
+    RclpyMessages,
+    imu_fields,
+    sideslip_message,
+    sideslip_twist_message,
+    status_message,
+    steering_fields,
+    twist_fields,
+)
+from sideslip_msgs_py.nodes.parameters import declare
+from sideslip_msgs_py.nodes.qos import profile_for
+from sideslip_msgs_py.nodes.runtime import StopFlag, run
+from sideslip_msgs_py.parameters import help_text
+
+NODE_NAME = "sideslip_estimator"
+LOG_EVERY_S = 5.0  # repeated rejections of one kind are logged at most this often
+
+
+class EstimatorNode(rclpy.node.Node):
+    def __init__(self, flag: StopFlag) -> None:
+        super().__init__(NODE_NAME)
+        del flag  # runs until signalled
+        v = declare(self, PARAMETERS)
+        try:
+            factory = backend_factory(v["backend"])
+            backend_values = declare(self, factory.parameters, prefix=f"{v['backend']}.")
+            params = estimator_params(v)
+            backend = factory(backend_values, params.window_steps)
+            if not v["status_rate_hz"] > 0.0:
+                raise ValueError(f"status_rate_hz must be > 0, got {v['status_rate_hz']}")
+        except (BackendError, ValueError) as err:
+            self.get_logger().fatal(f"bad parameter: {err}")
+            raise SystemExit(2) from None
+        self.core = Estimator(backend, params)
+        self.backend_name = v["backend"]
+        self.silence_timeout_s = float(v["silence_timeout_s"])
+        self.var_vx = float(v["velocity_sigma_mps"]) ** 2
+        self.msgs = RclpyMessages()
+        msgs = self.msgs
+        self.inputs: dict[str, tuple[Any, str]] = {}
+        self._last_rx: dict[str, float | None] = {}
+        for topic, msg_type, handler in (
+            (topics.IMU, msgs.Imu, self._on_imu),
+            (topics.TWIST, msgs.TwistStamped, self._on_twist),
+            (topics.STEERING, msgs.JointState, self._on_steering),
+        ):
+            sub = self.create_subscription(msg_type, topic, handler, profile_for(topic))
+            # Remapping may rename the topic: report and check the resolved name.
+            self.inputs[topic] = (sub, topics.TOPIC_TYPES[topic])
+            self._last_rx[sub.topic_name] = None
+        self.pub_beta = self.create_publisher(
+            msgs.Float64, topics.SIDESLIP, profile_for(topics.SIDESLIP)
+        )
+        self.pub_twist = self.create_publisher(
+            msgs.TwistWithCovarianceStamped,
+            topics.SIDESLIP_TWIST,
+            profile_for(topics.SIDESLIP_TWIST),
+        )
+        self.pub_status = self.create_publisher(
+            msgs.DiagnosticArray, topics.SIDESLIP_STATUS, profile_for(topics.SIDESLIP_STATUS)
+        )
+        self._latencies: list[float] = []
+        self._seen = self._counts()
+        self._logged: dict[str, float] = {}
+        self._wrong_types_logged: set[str] = set()
+        self.create_timer(1.0 / float(v["status_rate_hz"]), self._publish_status)
+        self.get_logger().info(
+            f"backend {backend.model_id}, window {params.window_steps} samples; "
+            f"inputs {', '.join(self._last_rx)}"
+        )
+
+    # --- inputs ---------------------------------------------------------------------------
+    def _received(self, topic: str) -> None:
+        self._last_rx[self.inputs[topic][0].topic_name] = time.monotonic()
+
+    def _guard(self, topic: str, action: Callable[[], Any]) -> Any:
+        try:
+            return action()
+        except InputRejected as err:
+            self._log_rejection(err.reason, str(err))
+        except MessageFieldError as err:
+            self.core.reject_message("bad_message", str(err))
+            self._log_rejection("bad_message", str(err))
+        return None
+
+    def _on_twist(self, msg: Any) -> None:
+        self._received(topics.TWIST)
+        self._guard(topics.TWIST, lambda: self.core.on_twist(topics.TWIST, twist_fields(msg)))
+
+    def _on_steering(self, msg: Any) -> None:
+        self._received(topics.STEERING)
+        self._guard(
+            topics.STEERING,
+            lambda: self.core.on_steering(topics.STEERING, steering_fields(msg)),
+        )
+
+    def _on_imu(self, msg: Any) -> None:
+        start = time.perf_counter()
+        self._received(topics.IMU)
+        out = self._guard(topics.IMU, lambda: self.core.on_imu(topics.IMU, imu_fields(msg)))
+        if out is None:
+            return
+        est = out.estimate
+        self.pub_beta.publish(sideslip_message(self.msgs, est.beta_rad))
+        self.pub_twist.publish(
+            sideslip_twist_message(
+                self.msgs, out.stamp_ns, out.v_x_mps, est.beta_rad, est.variance_rad2, self.var_vx
+            )
+        )
+        self._latencies.append(time.perf_counter() - start)
+
+    def _log_rejection(self, reason: str, detail: str) -> None:
+        now = time.monotonic()
+        if now - self._logged.get(reason, -1e9) >= LOG_EVERY_S:
+            self._logged[reason] = now
+            count = self.core.stats.rejected[reason]
+            self.get_logger().warning(f"rejected input ({reason}, {count} so far): {detail}")
+
+    # --- status -----------------------------------------------------------------------------
+    def _counts(self) -> tuple[int, int, int, int, int]:
+        s = self.core.stats
+        return (
+            sum(s.rejected.values()),
+            s.dropped,
+            sum(s.resets.values()),
+            s.estimates,
+            s.below_min_speed,
+        )
+
+    def _wrong_types(self) -> list[str]:
+        lines = []
+        for sub, expected in self.inputs.values():
+            for info in self.get_publishers_info_by_topic(sub.topic_name):
+                if info.topic_type != expected:
+                    who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                    lines.append(
+                        f"{sub.topic_name}: {who} publishes {info.topic_type}, expected {expected}"
+                    )
+        for line in lines:
+            if line not in self._wrong_types_logged:
+                self._wrong_types_logged.add(line)
+                self.get_logger().error(f"wrong message type: {line}")
+        return lines
+
+    def _publish_status(self) -> None:
+        now = time.monotonic()
+        counts = self._counts()
+        new = [c - p for c, p in zip(counts, self._seen, strict=True)]
+        self._seen = counts
+        obs = Observation(
+            input_ages_s={t: (None if rx is None else now - rx) for t, rx in self._last_rx.items()},
+            wrong_types=self._wrong_types(),
+            silence_timeout_s=self.silence_timeout_s,
+            window_fill=self.core.fill,
+            latencies_s=self._latencies,
+            new_rejections=new[0],
+            new_drops=new[1],
+            new_resets=new[2],
+            new_estimates=new[3],
+            new_below_min_speed=new[4],
+        )
+        self._latencies = []
+        status = assess(obs, self.core.stats, self.backend_name, self.core.backend.model_id)
+        self.pub_status.publish(
+            status_message(
+                self.msgs,
+                self.get_clock().now().nanoseconds,
+                level=status.level,
+                name=f"{self.get_name()}: sideslip estimate",
+                message=status.message,
+                hardware_id=self.get_fully_qualified_name(),
+                values=status.values,
+            )
+        )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = list(sys.argv if argv is None else argv)
+    user_args = args[1 : args.index("--ros-args")] if "--ros-args" in args else args[1:]
+    if "-h" in user_args or "--help" in user_args:
+        from sideslip_estimator.backends import BACKENDS
+
+        groups = [("Parameters", PARAMETERS)] + [
+            (f"Back-end {name} (parameters {name}.*)", f.parameters) for name, f in BACKENDS.items()
+        ]
+        print(
+            help_text(
+                "sideslip-estimator (ros2 run sideslip_estimator estimator_node): sideslip "
+                "angle from the vehicle sensor topics, on /sideslip.",
+                groups,
+            )
+        )
+        return 0
+    return run(EstimatorNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,60 @@
+"""The estimator node's parameters (declared by the node, listed by ``--help``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from sideslip_msgs_py.parameters import ParameterSpec
+
+from .estimator import EstimatorParams
+from .inputs import InputLimits
+
+PARAMETERS = (
+    ParameterSpec("backend", "kinematic", "Estimator back-end: kinematic or single_track."),
+    ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
+    ParameterSpec(
+        "max_input_age_s",
+        0.05,
+        "A sample is rejected when its twist or steering stamp differs from the IMU stamp "
+        "by more than this [s].",
+    ),
+    ParameterSpec(
+        "max_gap_s",
+        0.1,
+        "A gap between accepted samples longer than this [s] restarts the window.",
+    ),
+    ParameterSpec(
+        "min_speed_mps", 1.0, "No estimate below this X_v [m/s] (β is undefined at rest)."
+    ),
+    ParameterSpec(
+        "silence_timeout_s",
+        0.1,
+        "An input topic silent for longer than this [s] turns the status to WARN.",
+    ),
+    ParameterSpec("status_rate_hz", 2.0, "Rate of /sideslip/status [Hz]."),
+    ParameterSpec(
+        "velocity_sigma_mps",
+        1.0 / 3.6,
+        "1-σ of X_v [m/s] used for the v_x variance in /sideslip/twist.",
+    ),
+    ParameterSpec("limits.speed_mps", 100.0, "|X_v|, |Y_v| beyond this [m/s] are rejected."),
+    ParameterSpec(
+        "limits.acceleration_mps2", 50.0, "|X_a|, |Y_a| beyond this [m/s²] are rejected."
+    ),
+    ParameterSpec("limits.yaw_rate_radps", 5.0, "|yaw rate| beyond this [rad/s] is rejected."),
+    ParameterSpec("limits.stl_m", 0.5, "|steering rack travel| beyond this [m] is rejected."),
+)
+
+
+def estimator_params(values: Mapping[str, object]) -> EstimatorParams:
+    """Core parameters from declared values (raises ValueError naming the bad one)."""
+    limits = InputLimits(
+        **{k.split(".", 1)[1]: float(v) for k, v in values.items() if k.startswith("limits.")}  # type: ignore[arg-type]
+    )
+    return EstimatorParams(
+        window_steps=int(values["window_steps"]),  # type: ignore[call-overload]
+        max_input_age_s=float(values["max_input_age_s"]),  # type: ignore[arg-type]
+        max_gap_s=float(values["max_gap_s"]),  # type: ignore[arg-type]
+        min_speed_mps=float(values["min_speed_mps"]),  # type: ignore[arg-type]
+        limits=limits,
+    )

@@ -1,0 +1,110 @@
+"""Run an rclpy node until SIGINT or SIGTERM, then shut down cleanly with exit code 0.
+
+rclpy's own signal handlers shut the context down from inside the handler, which
+races with threads that are still publishing (the sim node publishes from its own
+thread) and turns SIGTERM into an exception in ``spin``. We install plain handlers
+that only set a flag; the spin loop notices it within one wait period and the node's
+``close()`` runs while the context is still valid.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+SPIN_PERIOD_S = 0.05
+"""Longest time between a signal and the spin loop noticing it."""
+
+
+def make_executor(context: Any = None) -> Any:
+    """The executor nodes spin on: rclpy's C++ EventsExecutor unless
+    ``SIDESLIP_EXECUTOR=single_threaded`` asks for the pure-Python one."""
+    if os.environ.get("SIDESLIP_EXECUTOR", "events") == "single_threaded":
+        return SingleThreadedExecutor(context=context)
+    from rclpy.experimental import EventsExecutor
+
+    return EventsExecutor(context=context)
+
+
+class StopFlag:
+    """Set by SIGINT/SIGTERM (or by a node that has finished its work)."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self.signal_name: str | None = None
+
+    def set(self, reason: str | None = None) -> None:
+        if reason is not None and self.signal_name is None:
+            self.signal_name = reason
+        self._event.set()
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def wait(self, timeout_s: float) -> bool:
+        return self._event.wait(timeout_s)
+
+
+class Closable(Protocol):
+    def close(self) -> None: ...
+
+
+def install_signal_handlers(flag: StopFlag) -> None:
+    """SIGINT and SIGTERM set ``flag`` (a second SIGINT still interrupts Python)."""
+
+    def handler(signum: int, _frame: Any) -> None:
+        if flag.is_set() and signum == signal.SIGINT:
+            signal.default_int_handler(signum, _frame)
+        flag.set(signal.Signals(signum).name)
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def run(
+    make_node: Callable[[StopFlag], Any],
+    argv: Sequence[str] | None = None,
+) -> int:
+    """Create the node with ``make_node(flag)``, spin until the flag is set, clean up.
+
+    ``make_node`` may raise ``SystemExit`` (bad parameters): the exit code is passed on
+    after rclpy is shut down. The node may also set the flag itself when its work is
+    done (a player at the end of a bag). Returns the process exit code.
+    """
+    flag = StopFlag()
+    install_signal_handlers(flag)
+    args = list(sys.argv if argv is None else argv)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    code = 0
+    executor = make_executor()
+    try:
+        node = make_node(flag)
+        executor.add_node(node)
+        while not flag.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 2
+        if not isinstance(exc.code, int) and exc.code:
+            print(exc.code, file=sys.stderr)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown(timeout_sec=1.0)
+        if rclpy.ok():
+            rclpy.shutdown()
+    return code

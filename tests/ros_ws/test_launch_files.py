@@ -1,0 +1,236 @@
+"""The XML launch files name real executables, real parameter files and declared args.
+
+``ros2 launch`` itself cannot run here: ROS 2's ``launch`` and ``launch_ros`` are not
+published on PyPI (the ``launch`` project there is an unrelated 2017 package), and this
+project gets ROS 2 from PyPI wheels. So these tests resolve statically what
+``ros2 launch`` would resolve on a stock Jazzy install: every ``<node pkg= exec=>`` is a
+console script that colcon installs to ``lib/<pkg>/``, every
+``$(find-pkg-share pkg)/config/...`` is a YAML file the package installs, every
+``$(var x)`` is declared by an ``<arg>``, every parameter a launch file sets is one the
+node declares (a ``ParameterSpec`` in the package), with the declared type (launch
+types a value by parsing it as YAML, and the nodes reject a type change), and every
+launch argument that overrides a parameter defaults to the YAML's value, or to the
+node's own default where the YAML does not set it: a launch without arguments runs
+what the configuration files say.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_estimator")
+LAUNCH_FILES = {
+    "sim_estimator": ROOT / "sideslip_estimator/launch/sim_estimator.launch.xml",
+    "play_estimator": ROOT / "sideslip_estimator/launch/play_estimator.launch.xml",
+    "sim_record": ROOT / "sideslip_sim/launch/sim_record.launch.xml",
+}
+FIND_PKG_SHARE = re.compile(r"\$\(find-pkg-share\s+([\w-]+)\)/([^\s\"$]+)")
+VAR = re.compile(r"\$\(var\s+([\w-]+)\)")
+# Parameters every rclpy node declares itself (and qos_overrides.*): not in ParameterSpecs.
+BUILT_IN_PARAMETERS = {"use_sim_time"}
+UNKNOWN = object()
+
+
+def console_scripts(package: str) -> dict[str, str]:
+    """``{script name: "module:function"}`` from the package's setup.py, read without running it."""
+    tree = ast.parse((ROOT / package / "setup.py").read_text())
+    for call in ast.walk(tree):
+        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "setup":
+            for keyword in call.keywords:
+                if keyword.arg == "entry_points":
+                    entries = ast.literal_eval(keyword.value).get("console_scripts", [])
+                    return dict((part.strip() for part in entry.split("=", 1)) for entry in entries)
+    return {}
+
+
+def declared_parameters(package: str) -> dict[str, object]:
+    """``{name: default}`` of every ``ParameterSpec("name", default, ...)`` in the package.
+
+    Specs in ``backends/<name>.py`` are declared under the prefix ``<name>.`` (the
+    estimator declares only the selected back-end's, as ``backend_name.param``). A
+    default that is not a literal (``math.radians(0.2)``) is recorded as ``UNKNOWN``.
+    """
+    declared: dict[str, object] = {}
+    for module in sorted((ROOT / package / package).rglob("*.py")):
+        prefix = f"{module.stem}." if module.parent.name == "backends" else ""
+        for call in ast.walk(ast.parse(module.read_text())):
+            if (
+                isinstance(call, ast.Call)
+                and getattr(call.func, "id", None) == "ParameterSpec"
+                and len(call.args) >= 2
+                and isinstance(call.args[0], ast.Constant)
+            ):
+                try:
+                    default = ast.literal_eval(call.args[1])
+                except ValueError:
+                    default = UNKNOWN
+                declared[prefix + call.args[0].value] = default
+    return declared
+
+
+def launch_files() -> list[Path]:
+    """Every launch file in the three packages (those named above and any added later)."""
+    return sorted(p for pkg in PACKAGES for p in (ROOT / pkg / "launch").glob("*.launch.xml"))
+
+
+def parse(path: Path) -> ET.Element:
+    root = ET.parse(path).getroot()
+    assert root.tag == "launch", f"{path}: root element is <{root.tag}>, expected <launch>"
+    return root
+
+
+def attribute_values(root: ET.Element) -> list[tuple[ET.Element, str, str]]:
+    return [(el, name, value) for el in root.iter() for name, value in el.attrib.items()]
+
+
+def resolve_share(value: str) -> Path:
+    """The source file behind ``$(find-pkg-share pkg)/rest`` (ament share == package folder)."""
+    match = FIND_PKG_SHARE.fullmatch(value.strip())
+    assert match, f"expected $(find-pkg-share PKG)/PATH, got {value!r}"
+    return ROOT / match.group(1) / match.group(2)
+
+
+def flatten(tree: dict, prefix: str = "") -> dict:
+    """Nested YAML mappings as ROS names them: ``{limits: {stl_m: 0.5}}`` → ``limits.stl_m``."""
+    flat: dict = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            flat.update(flatten(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def node_parameters(path: Path, yaml_path: Path, node_name: str) -> dict:
+    """The ``ros__parameters`` that a parameter file gives the node ``node_name``."""
+    assert yaml_path.is_file(), f"{path.name}: parameter file {yaml_path} does not exist"
+    doc = yaml.safe_load(yaml_path.read_text()) or {}
+    assert isinstance(doc, dict), f"{yaml_path}: expected a mapping of node names"
+    params: dict = {}
+    for key, section in doc.items():
+        if key in ("/**", node_name, f"/{node_name}"):
+            assert "ros__parameters" in section, f"{yaml_path}: {key} has no ros__parameters"
+            params.update(flatten(section["ros__parameters"]))
+    assert params, (
+        f"{path.name}: {yaml_path} has no section for node {node_name!r} "
+        f"(top-level keys: {sorted(doc)}); the node would start with code defaults"
+    )
+    return params
+
+
+def test_the_three_launch_files_exist() -> None:
+    for name, path in LAUNCH_FILES.items():
+        assert path.is_file(), f"launch file {name} missing at {path}"
+    assert set(LAUNCH_FILES.values()) <= set(launch_files())
+
+
+@pytest.mark.parametrize("path", launch_files(), ids=lambda p: p.name)
+def test_every_node_is_an_installed_console_script(path: Path) -> None:
+    nodes = parse(path).findall(".//node")
+    assert nodes, f"{path}: no <node>"
+    for node in nodes:
+        pkg, exe = node.get("pkg"), node.get("exec")
+        assert pkg in PACKAGES, f"{path}: <node pkg={pkg!r}> is not one of {PACKAGES}"
+        scripts = console_scripts(pkg)
+        assert exe in scripts, (
+            f"{path}: <node exec={exe!r}> is not a console script of {pkg} "
+            f"(setup.py declares {sorted(scripts)})"
+        )
+
+
+@pytest.mark.parametrize("path", launch_files(), ids=lambda p: p.name)
+def test_every_find_pkg_share_file_exists_and_is_installed(path: Path) -> None:
+    for _el, _name, value in attribute_values(parse(path)):
+        for pkg, rest in FIND_PKG_SHARE.findall(value):
+            assert pkg in PACKAGES, f"{path}: $(find-pkg-share {pkg}) is not one of ours"
+            source = ROOT / pkg / rest
+            assert source.is_file(), f"{path}: $(find-pkg-share {pkg})/{rest}: no {source}"
+            # setup.py installs config/*.yaml and launch/*.launch.xml into share/<pkg>/.
+            assert (rest.startswith("config/") and rest.endswith(".yaml")) or (
+                rest.startswith("launch/") and rest.endswith(".launch.xml")
+            ), f"{path}: {rest} is not in a folder that setup.py installs to share/{pkg}"
+
+
+@pytest.mark.parametrize("path", launch_files(), ids=lambda p: p.name)
+def test_every_var_is_declared_by_an_arg(path: Path) -> None:
+    root = parse(path)
+    declared = [arg.get("name") for arg in root.iter("arg")]
+    assert len(declared) == len(set(declared)), f"{path}: an <arg> is declared twice"
+    used = {var for _el, _n, value in attribute_values(root) for var in VAR.findall(value)}
+    assert used <= set(declared), f"{path}: $(var) without <arg>: {sorted(used - set(declared))}"
+    unused = set(declared) - used
+    assert not unused, f"{path}: <arg> declared but never used: {sorted(unused)}"
+    for arg in root.iter("arg"):
+        assert arg.get("description"), f"{path}: <arg {arg.get('name')}> has no description"
+
+
+@pytest.mark.parametrize("path", launch_files(), ids=lambda p: p.name)
+def test_set_parameters_are_declared_typed_and_default_to_the_yaml(path: Path) -> None:
+    root = parse(path)
+    defaults = {arg.get("name"): arg.get("default") for arg in root.iter("arg")}
+    for node in root.iter("node"):
+        files = [p.get("from") for p in node.findall("param") if p.get("from")]
+        overrides = [p for p in node.findall("param") if p.get("name")]
+        if not overrides:
+            continue
+        name = node.get("name")
+        assert name, f"{path}: node {node.get('exec')} sets parameters but has no name="
+        assert files, f"{path}: node {name} sets parameters but loads no YAML file"
+        yaml_params: dict = {}
+        for file in files:
+            yaml_params.update(node_parameters(path, resolve_share(file), name))
+        declared = declared_parameters(node.get("pkg"))
+        for key in yaml_params:
+            if key in BUILT_IN_PARAMETERS or key.startswith("qos_overrides."):
+                continue
+            assert key in declared, f"{path}: the YAML for {name} sets undeclared {key!r}"
+        for param in overrides:
+            key, value = param.get("name"), param.get("value") or ""
+            if key in BUILT_IN_PARAMETERS:
+                continue
+            assert key in declared, (
+                f"{path}: node {name} sets {key!r}, which the node does not declare "
+                f"(it declares {sorted(declared)})"
+            )
+            expected = yaml_params.get(key, declared[key])
+            var = VAR.fullmatch(value)
+            if (var and defaults.get(var.group(1)) is None) or expected is UNKNOWN:
+                continue  # a required argument, or a computed default: nothing to compare
+            # launch infers a parameter's type by parsing the text as YAML.
+            text = defaults[var.group(1)] if var else value
+            launched = yaml.safe_load(text)
+            assert type(launched) is type(expected), (
+                f"{path}: {name}.{key} gets {text!r} ({type(launched).__name__}); the node "
+                f"declares a {type(expected).__name__} and would refuse it"
+            )
+            if var:
+                assert launched == expected, (
+                    f"{path}: <arg {var.group(1)}> defaults to {launched!r} but {name}.{key} "
+                    f"is {expected!r} without it (YAML, else the node's default)"
+                )
+
+
+def test_sim_time_follows_the_clock_source() -> None:
+    """Whoever uses sim time has a /clock publisher in the same launch file."""
+    sim = parse(LAUNCH_FILES["sim_estimator"])
+    nodes = {n.get("exec"): n for n in sim.iter("node")}
+    sim_params = {p.get("name"): p.get("value") for p in nodes["sim_node"].findall("param")}
+    est_params = {p.get("name"): p.get("value") for p in nodes["estimator_node"].findall("param")}
+    assert sim_params["publish_clock"] == est_params["use_sim_time"] == "$(var use_sim_time)"
+    assert "use_sim_time" not in sim_params, "the simulator is the clock: it runs on wall time"
+
+    play = parse(LAUNCH_FILES["play_estimator"])
+    players = [n for n in play.iter("node") if n.get("exec") == "sideslip-play"]
+    with_clock = [n for n in players if "--clock" in n.get("args", "").split()]
+    assert [n.get("if") for n in with_clock] == ["$(var clock)"]
+    assert all(n.get("unless") == "$(var clock)" for n in players if n not in with_clock)
+    (estimator,) = [n for n in play.iter("node") if n.get("exec") == "estimator_node"]
+    est_params = {p.get("name"): p.get("value") for p in estimator.findall("param")}
+    assert est_params["use_sim_time"] == "$(var clock)"
