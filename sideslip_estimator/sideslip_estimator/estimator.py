@@ -71,6 +71,9 @@ class EstimatorStats:
     dropped: int = 0
     resets: Counter[str] = field(default_factory=Counter)
     below_min_speed: int = 0
+    no_estimate: int = 0
+    """Full window, above min speed, but the back-end had no estimate (e.g. its own
+    stricter speed limit)."""
     last_rejection: str = ""
 
 
@@ -143,17 +146,20 @@ class Estimator:
         self._last_accepted_ns = stamp
         self.stats.accepted += 1
         estimate = self.backend.update(self.window.rows(), self.window.stamps_ns())
-        if estimate is None or not self.window.full:
+        if not self.window.full:
             return None
-        if not (math.isfinite(estimate.beta_rad) and math.isfinite(estimate.variance_rad2)):
-            raise self._reject(
-                InputRejected("model_non_finite", f"{self.backend.model_id} returned {estimate}")
-            )
         v_x = float(row[X_V])
         if v_x < self.params.min_speed_mps:
             # β = atan2(v_y, v_x) is meaningless at walking pace: no output, not a guess.
             self.stats.below_min_speed += 1
             return None
+        if estimate is None:
+            self.stats.no_estimate += 1
+            return None
+        if not (math.isfinite(estimate.beta_rad) and math.isfinite(estimate.variance_rad2)):
+            raise self._reject(
+                InputRejected("model_non_finite", f"{self.backend.model_id} returned {estimate}")
+            )
         self.stats.estimates += 1
         return Output(stamp, v_x, estimate)
 

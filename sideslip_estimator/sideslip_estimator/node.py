@@ -144,7 +144,7 @@ class EstimatorNode(rclpy.node.Node):
             self.get_logger().warning(f"rejected input ({reason}, {count} so far): {detail}")
 
     # --- status -----------------------------------------------------------------------------
-    def _counts(self) -> tuple[int, int, int, int, int]:
+    def _counts(self) -> tuple[int, ...]:
         s = self.core.stats
         return (
             sum(s.rejected.values()),
@@ -152,6 +152,7 @@ class EstimatorNode(rclpy.node.Node):
             sum(s.resets.values()),
             s.estimates,
             s.below_min_speed,
+            s.no_estimate,
         )
 
     def _wrong_types(self) -> list[str]:
@@ -185,6 +186,7 @@ class EstimatorNode(rclpy.node.Node):
             new_resets=new[2],
             new_estimates=new[3],
             new_below_min_speed=new[4],
+            new_no_estimate=new[5],
         )
         self._latencies = []
         status = assess(obs, self.core.stats, self.backend_name, self.core.backend.model_id)

@@ -35,6 +35,7 @@ class Observation:
     new_resets: int
     new_estimates: int
     new_below_min_speed: int
+    new_no_estimate: int = 0
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,8 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
         warnings.append(f"window restarted {obs.new_resets} time(s)")
     if obs.new_below_min_speed and not obs.new_estimates:
         warnings.append("below min_speed_mps: no estimate")
+    if obs.new_no_estimate and not obs.new_estimates:
+        warnings.append(f"{model_id} gave no estimate for {obs.new_no_estimate} sample(s)")
     if errors:
         level, message = DIAGNOSTIC_ERROR, "; ".join(errors + warnings)
     elif warnings:
@@ -90,6 +93,8 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
         "rejected_samples": str(sum(stats.rejected.values())),
         **{f"rejected[{k}]": str(v) for k, v in sorted(stats.rejected.items())},
         "dropped_samples": str(stats.dropped),
+        "below_min_speed": str(stats.below_min_speed),
+        "no_estimate": str(stats.no_estimate),
         "window_restarts": str(sum(stats.resets.values())),
         **{f"restarts[{k}]": str(v) for k, v in sorted(stats.resets.items())},
         "last_rejection": stats.last_rejection or "-",

@@ -211,7 +211,7 @@ def sample_to_messages(
     """
     cov = covariances if covariances is not None else imu_covariances(sigma)
     hdr = header(factory, sample.stamp_ns)
-    out: dict[str, Any] = {
+    built: dict[str, Any] = {
         topics.IMU: factory.Imu(
             header=hdr,
             orientation=factory.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
@@ -230,6 +230,7 @@ def sample_to_messages(
             effort=np.zeros(0, dtype=np.float64),
         ),
     }
+    out = {topic: built[topic] for topic in topics.SENSOR_TOPICS}
     if sample.truth is not None:
         t = sample.truth
         out[topics.GROUND_TRUTH_TWIST] = _twist_stamped(

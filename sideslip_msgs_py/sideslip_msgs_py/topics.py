@@ -68,8 +68,12 @@ STEERING_JOINT: Final = "steering_rack"
 """JointState name of the steering rack; position is the rack travel STL [m]."""
 
 # --- Groups --------------------------------------------------------------------------------
-SENSOR_TOPICS: Final[tuple[str, ...]] = (IMU, TWIST, STEERING)
-"""What the vehicle's sensors publish; every sample needs all three."""
+SENSOR_TOPICS: Final[tuple[str, ...]] = (TWIST, STEERING, IMU)
+"""What the vehicle's sensors publish; every sample needs all three.
+
+In publish order, the IMU last: the estimator forms a sample when an IMU message
+arrives, from the latest twist and steering, so a step whose messages share one stamp
+must deliver its twist and steering first (the sim node and our bags do)."""
 
 GROUND_TRUTH_TOPICS: Final[tuple[str, ...]] = (GROUND_TRUTH_TWIST, GROUND_TRUTH_SIDESLIP)
 """Simulator-only labels; optional in bags recorded from a real car."""

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import numbers
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -52,3 +53,36 @@ class BackendFactory(Protocol):
     parameters: tuple[ParameterSpec, ...]
 
     def __call__(self, values: Mapping[str, object], window_steps: int) -> Backend: ...
+
+
+def parameter_values(
+    backend: str, specs: Iterable[ParameterSpec], values: Mapping[str, object]
+) -> dict[str, bool | int | float | str]:
+    """The spec defaults overlaid with ``values``, each checked against its spec's type.
+
+    Unknown keys are refused (a typo must not fall back to a default silently); an int
+    is accepted for a double, nothing else is converted.
+    """
+    known = {p.name: p for p in specs}
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        msg = f"{backend}: unknown parameter(s) {unknown} (known: {', '.join(known)})"
+        raise BackendError(msg)
+    out: dict[str, bool | int | float | str] = {}
+    for name, spec in known.items():
+        v = values.get(name, spec.default)
+        kind = type(spec.default)
+        if isinstance(v, bool) != (kind is bool):
+            ok = False
+        elif kind is float:
+            ok = isinstance(v, numbers.Real)
+            v = float(v) if ok else v  # type: ignore[arg-type]
+        elif kind is int:
+            ok = isinstance(v, numbers.Integral)
+            v = int(v) if ok else v  # type: ignore[call-overload]
+        else:
+            ok = isinstance(v, kind)
+        if not ok:
+            raise BackendError(f"{backend}.{name} must be a {spec.type_name}, got {v!r}")
+        out[name] = v  # type: ignore[assignment]
+    return out

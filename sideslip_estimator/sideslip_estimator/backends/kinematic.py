@@ -18,7 +18,7 @@ import numpy.typing as npt
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.parameters import ParameterSpec
 
-from .base import BackendError, Estimate
+from .base import BackendError, Estimate, parameter_values
 
 X_V, Y_V = channel_indices(("x_v_mps", "y_v_mps"))
 
@@ -42,8 +42,8 @@ class KinematicBackend:
     )
 
     def __init__(self, values: Mapping[str, object], window_steps: int) -> None:
-        steps = int(values.get("smoothing_steps", 1))  # type: ignore[arg-type]
-        sigma = float(values.get("velocity_sigma_mps", 1.0 / 3.6))  # type: ignore[arg-type]
+        v = parameter_values(self.name, self.parameters, values)
+        steps, sigma = int(v["smoothing_steps"]), float(v["velocity_sigma_mps"])
         if not 1 <= steps <= window_steps:
             msg = f"kinematic.smoothing_steps must be in 1..{window_steps}, got {steps}"
             raise BackendError(msg)

@@ -27,7 +27,7 @@ import yaml
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.parameters import ParameterSpec
 
-from .base import BackendError, Estimate
+from .base import BackendError, Estimate, parameter_values
 
 X_V, Y_A, YAW_RATE, STL = channel_indices(("x_v_mps", "y_a_mps2", "yaw_rate_radps", "stl_m"))
 
@@ -83,8 +83,8 @@ class SingleTrackParams:
         values: dict[str, object] = {"name": str(data["name"])}
         for n in names[1:]:
             v = data[n]
-            if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
-                raise BackendError(f"{where}: {n} must be a positive number, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < math.inf:
+                raise BackendError(f"{where}: {n} must be a positive finite number, got {v!r}")
             values[n] = float(v)
         return cls(**values)  # type: ignore[arg-type]
 
@@ -129,8 +129,7 @@ class SingleTrackBackend:
 
     def __init__(self, values: Mapping[str, object], window_steps: int) -> None:
         del window_steps  # recursive: it reads the newest row only
-        defaults = {p.name: p.default for p in self.parameters}
-        v = {**defaults, **values}
+        v = parameter_values(self.name, self.parameters, values)
         self.params = SingleTrackParams.load(str(v["params_file"]))
         sig = {}
         for key in (
@@ -140,7 +139,7 @@ class SingleTrackBackend:
             "process_sigma_yaw_radps2",
             "min_speed_mps",
         ):
-            x = float(v[key])  # type: ignore[arg-type]
+            x = float(v[key])
             if not (math.isfinite(x) and x > 0.0):
                 raise BackendError(f"single_track.{key} must be finite and > 0, got {x!r}")
             sig[key] = x

@@ -1,0 +1,297 @@
+"""The estimator node over real DDS: fed by a test publisher, checked on its outputs.
+
+Each test starts ``sideslip-estimator`` as a child process in its own DDS domain,
+publishes contract messages from the test's probe node and reads /sideslip,
+/sideslip/twist and /sideslip/status back: bad input must give a log line, a status
+diagnostic, no crash and never a NaN on a topic.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from ros_support import Probe, wait_for
+from std_msgs.msg import Float64, String
+
+from sideslip_msgs_py import topics
+from sideslip_msgs_py.messages import RclpyMessages, sample_to_messages
+from sideslip_msgs_py.nodes.qos import profile_for
+from sideslip_msgs_py.sample import SensorNoiseSigma, VehicleSample
+
+START_NS = 1_000_000_000_000
+DT_NS = 2_500_000
+BETA = 0.05  # rad: the kinematic back-end returns atan2(Y_v, X_v) of what we send
+
+
+def status_values(msg) -> tuple[int, str, dict[str, str]]:
+    s = msg.status[0]
+    level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+    return level, s.message, {kv.key: kv.value for kv in s.values}
+
+
+class Feeder:
+    """Publishes contract sensor messages from the probe, one step at a time."""
+
+    def __init__(self, probe) -> None:
+        self.msgs = RclpyMessages()
+        self.pubs = {
+            t: probe.publisher(t, self._type(t), profile_for(t)) for t in topics.SENSOR_TOPICS
+        }
+        self.sigma = SensorNoiseSigma.paper()
+        self.probe = probe
+
+    def _type(self, topic: str):
+        return {
+            topics.IMU: RclpyMessages().Imu,
+            topics.TWIST: RclpyMessages().TwistStamped,
+            topics.STEERING: RclpyMessages().JointState,
+        }[topic]
+
+    def wait_matched(self) -> None:
+        for pub in self.pubs.values():
+            self.probe.wait_for_subscribers(pub)
+
+    @staticmethod
+    def sample(k: int, stamp_ns: int | None = None, **changes: float) -> VehicleSample:
+        u = 20.0
+        s = VehicleSample(
+            stamp_ns=START_NS + k * DT_NS if stamp_ns is None else stamp_ns,
+            x_v_mps=u,
+            y_v_mps=u * math.tan(BETA),
+            x_a_mps2=0.1,
+            y_a_mps2=3.0,
+            yaw_rate_radps=0.15,
+            stl_m=0.02,
+            stl_rate_mps=0.0,
+        )
+        return replace(s, **changes)
+
+    def send(self, sample: VehicleSample, only: tuple[str, ...] = topics.SENSOR_TOPICS) -> None:
+        # Twist and steering first: the estimator aligns on the IMU message.
+        msgs = sample_to_messages(sample, self.msgs, self.sigma)
+        for topic in (topics.TWIST, topics.STEERING, topics.IMU):
+            if topic in only:
+                self.pubs[topic].publish(msgs[topic])
+
+    def run(self, first: int, count: int, period_s: float = 0.001, **changes: float) -> int:
+        """Send ``count`` steps from step ``first`` on; returns the next step index."""
+        for k in range(first, first + count):
+            self.send(self.sample(k, **changes))
+            time.sleep(period_s)
+        return first + count
+
+
+@dataclass
+class Rig:
+    child: Any
+    feeder: Feeder
+    beta: list
+    twist: list
+    status: list
+
+
+@pytest.fixture
+def estimator(spawn, probe):
+    """A running estimator (fast status), plus inboxes of its three outputs."""
+    child = spawn(
+        "sideslip-estimator",
+        "--ros-args",
+        "-p",
+        "status_rate_hz:=10.0",
+        "-p",
+        "silence_timeout_s:=0.3",
+        "-p",
+        "max_gap_s:=5.0",  # the feeder's pace varies: only stamp jumps restart here
+    )
+    beta = probe.subscribe(topics.SIDESLIP, Float64, profile_for(topics.SIDESLIP))
+    twist = probe.subscribe(
+        topics.SIDESLIP_TWIST, TwistWithCovarianceStamped, profile_for(topics.SIDESLIP_TWIST)
+    )
+    status = probe.subscribe(
+        topics.SIDESLIP_STATUS, DiagnosticArray, profile_for(topics.SIDESLIP_STATUS)
+    )
+    wait_for(lambda: len(status) > 0, 30, "the estimator's first status")
+    feeder = Feeder(probe)
+    feeder.wait_matched()
+    return Rig(child, feeder, beta, twist, status)
+
+
+def wait_status(status, predicate, timeout_s: float, what: str):
+    def check():
+        for rec in reversed(status[-20:]):
+            level, message, values = status_values(rec.msg)
+            if predicate(level, message, values):
+                return level, message, values
+        return None
+
+    return wait_for(check, timeout_s, what)
+
+
+def assert_outputs_finite(beta, twist) -> None:
+    values = [r.msg.data for r in beta]
+    assert all(math.isfinite(v) for v in values)
+    for r in twist:
+        lin = r.msg.twist.twist.linear
+        assert math.isfinite(lin.x) and math.isfinite(lin.y)
+        assert np.all(np.isfinite(r.msg.twist.covariance))
+
+
+def test_publishes_nothing_until_the_window_is_full_then_beta(estimator):
+    rig = estimator
+    child, feeder, beta, twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    k = feeder.run(0, 60)
+    time.sleep(0.3)  # let in-flight messages land before asserting an absence
+    assert beta == [] and twist == []
+    feeder.run(k, 150)
+    wait_for(lambda: len(beta) >= 20, 10, "estimates once the window is full")
+    assert all(r.msg.data == pytest.approx(BETA, abs=1e-12) for r in beta)
+    last = twist[-1].msg
+    assert last.header.frame_id == topics.BASE_FRAME
+    assert last.twist.twist.linear.y == pytest.approx(20.0 * math.tan(BETA))
+    wait_status(status, lambda lv, m, v: v["window_fill"] == "100/100", 5, "window full")
+    assert child.proc.poll() is None
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "reason"),
+    [
+        ("x_v_mps", float("nan"), "non_finite"),
+        ("y_v_mps", float("inf"), "non_finite"),
+        ("x_a_mps2", float("-inf"), "non_finite"),
+        ("y_a_mps2", 1.0e4, "out_of_range"),
+        ("yaw_rate_radps", float("nan"), "non_finite"),
+        ("stl_m", 7.0, "out_of_range"),
+    ],
+)
+def test_bad_values_are_rejected_logged_and_reported(estimator, field, value, reason):
+    rig = estimator
+    child, feeder, beta, twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    k = feeder.run(0, 120)
+    wait_for(lambda: len(beta) > 0, 10, "estimates before the bad input")
+    feeder.run(k, 30, **{field: value})
+    found = wait_status(
+        status, lambda lv, m, v: int(v.get(f"rejected[{reason}]", 0)) > 0, 10, f"{reason} count"
+    )
+    assert found[0] >= 1 and "rejected" in found[1]
+    assert_outputs_finite(beta, twist)
+    assert child.proc.poll() is None
+    wait_for(lambda: f"rejected input ({reason}" in child.output(), 5, "a log line")
+
+
+def test_stamp_going_backwards_restarts_the_window(estimator):
+    rig = estimator
+    child, feeder, beta, twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    feeder.run(0, 150)
+    wait_for(lambda: len(beta) > 0, 10, "estimates")
+    # A bag played in a loop: stamps jump back to the start.
+    for k in range(20):
+        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10**9 + k * DT_NS))
+        time.sleep(0.001)
+    found = wait_status(
+        status, lambda lv, m, v: v.get("restarts[stamp_backwards]") == "1", 10, "a restart"
+    )
+    assert found[2]["window_fill"] in {f"{n}/100" for n in range(0, 21)}
+    n_before = len(twist)
+    for k in range(20, 130):
+        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10**9 + k * DT_NS))
+        time.sleep(0.001)
+    wait_for(lambda: len(twist) > n_before, 10, "estimates after the window refilled")
+    restamped = [
+        r.msg.header.stamp.sec * 10**9 + r.msg.header.stamp.nanosec for r in twist[n_before:]
+    ]
+    # After the restart the window first has to hold 100 samples of the new run again.
+    assert min(restamped) >= START_NS - 10**9 + 99 * DT_NS
+    assert child.proc.poll() is None
+
+
+def test_silent_topic_turns_status_to_warn_and_output_stops(estimator):
+    rig = estimator
+    child, feeder, beta, _twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    k = feeder.run(0, 150)
+    wait_for(lambda: len(beta) > 0, 10, "estimates")
+    # Twist goes silent; IMU and steering keep coming, so samples turn stale.
+    for j in range(k, k + 200):
+        feeder.send(feeder.sample(j), only=(topics.IMU, topics.STEERING))
+        time.sleep(0.002)
+    found = wait_status(
+        status, lambda lv, m, v: lv == 1 and f"{topics.TWIST} silent" in m, 10, "WARN silent"
+    )
+    assert int(found[2]["rejected[stale_twist]"]) > 0
+    n = len(beta)
+    time.sleep(0.3)
+    assert len(beta) == n, "no estimate may be published from stale inputs"
+    assert child.proc.poll() is None
+
+
+def test_wrong_message_type_on_an_input_topic_is_an_error(estimator, ros_domain, request):
+    rig = estimator
+    child, feeder, beta, _twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    # Another participant: one DDS participant cannot hold two types on one topic.
+    intruder = Probe(ros_domain.domain_id, name="intruder")
+    request.addfinalizer(intruder.close)
+    bad = intruder.publisher(topics.IMU, String, 10)
+    bad.publish(String(data="not an Imu"))
+    found = wait_status(status, lambda lv, m, v: lv == 2, 15, "ERROR status for the wrong type")
+    assert topics.IMU in found[1] and "std_msgs/msg/String" in found[1]
+    wait_for(lambda: "wrong message type" in child.output(), 5, "a log line")
+    # The node keeps working for the publishers of the right type.
+    feeder.run(0, 150)
+    wait_for(lambda: len(beta) > 0, 10, "estimates despite the wrong publisher")
+    assert child.proc.poll() is None
+
+
+def test_flood_drops_oldest_reports_it_and_keeps_latency_bounded(estimator):
+    rig = estimator
+    child, feeder, beta, twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    feeder.run(0, 150)
+    wait_for(lambda: len(twist) > 0, 10, "estimates")
+    # As fast as Python can publish: several times what the node can take in.
+    n = 6000
+    for k in range(150, 150 + n):
+        feeder.send(feeder.sample(k))
+    sent_done = time.time_ns()
+    last_stamp = START_NS + (150 + n - 1) * DT_NS
+    wait_status(
+        status, lambda lv, m, v: int(v["dropped_samples"]) > 0, 10, "dropped samples reported"
+    )
+
+    # Bounded latency: the node is caught up with the newest data shortly after the
+    # flood, instead of working through a backlog of thousands of messages.
+    def caught_up():
+        return twist and (
+            twist[-1].msg.header.stamp.sec * 10**9 + twist[-1].msg.header.stamp.nanosec
+            >= last_stamp - 10 * DT_NS
+        )
+
+    wait_for(caught_up, 5, "an estimate for (nearly) the last flooded sample")
+    received = [r for r in twist if r.recv_ns >= sent_done]
+    assert received, "some estimates arrive only after the flood"
+    assert (received[-1].recv_ns - sent_done) < 1.0e9
+    assert_outputs_finite(beta, twist)
+    assert child.proc.poll() is None
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_the_estimator_within_2_s_with_exit_0(estimator, sig):
+    rig = estimator
+    child, feeder, beta, _twist, _status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
+    feeder.run(0, 120)
+    wait_for(lambda: len(beta) > 0, 10, "estimates")
+    code, seconds = child.stop(sig)
+    assert code == 0, child.output()
+    assert seconds < 2.0
+
+
+def test_bad_parameter_exits_2_with_the_parameter_named(spawn):
+    child = spawn("sideslip-estimator", "--ros-args", "-p", "backend:=magic")
+    code = child.proc.wait(30)
+    assert code == 2
+    assert "unknown backend 'magic'" in child.output()

@@ -1,0 +1,177 @@
+"""Node parameters as data: typed defaults, the core parameters built from them, and the
+shipped config YAMLs that must list exactly the declared parameters with their defaults."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+import sideslip_sim.node as sim_node
+from sideslip_estimator.backends import BACKENDS
+from sideslip_estimator.estimator import EstimatorParams
+from sideslip_estimator.inputs import InputLimits
+from sideslip_estimator.parameters import PARAMETERS, estimator_params
+from sideslip_msgs_py.parameters import ParameterSpec, help_text
+from sideslip_sim.sensors import NOISE_PROFILES
+from sideslip_sim.stream import select_runs
+from sideslip_sim.vehicle import shipped_vehicles
+
+ROOT = Path(__file__).resolve().parents[2]
+ESTIMATOR_YAML = ROOT / "sideslip_estimator" / "config" / "estimator.yaml"
+SIM_YAML = ROOT / "sideslip_sim" / "config" / "sim.yaml"
+
+
+def _estimator_specs() -> dict[str, ParameterSpec]:
+    specs = {p.name: p for p in PARAMETERS}
+    for name, factory in BACKENDS.items():
+        specs |= {f"{name}.{p.name}": p for p in factory.parameters}
+    return specs
+
+
+def _sim_specs() -> dict[str, ParameterSpec]:
+    return {p.name: p for p in sim_node.PARAMETERS}
+
+
+def _defaults() -> dict[str, object]:
+    return {p.name: p.default for p in PARAMETERS}
+
+
+# --- typed defaults ---------------------------------------------------------------------------
+
+FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm")
+FLOAT_NAMES = {"mu", "real_time_factor"}
+INT_NAMES = {"window_steps", "smoothing_steps", "seed", "randomized_count", "wait_for_subscribers"}
+BOOL_NAMES = {"publish_clock", "loop", "ground_truth"}
+STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise"}
+
+
+def _expected_type(full_name: str) -> type:
+    name = full_name.rsplit(".", 1)[-1]
+    if name in INT_NAMES:
+        return int
+    if name in BOOL_NAMES:
+        return bool
+    if name in STR_NAMES:
+        return str
+    if name in FLOAT_NAMES or name.endswith(FLOAT_SUFFIXES):
+        return float
+    raise AssertionError(f"{full_name}: no type rule; add the name to this test")
+
+
+@pytest.mark.parametrize(
+    ("name", "spec"),
+    [*_estimator_specs().items(), *(("sim:" + k, v) for k, v in _sim_specs().items())],
+    ids=lambda x: x if isinstance(x, str) else "",
+)
+def test_every_parameter_default_has_the_type_its_name_implies(
+    name: str, spec: ParameterSpec
+) -> None:
+    # A quantity with a unit must be a double: an int default would make rclpy refuse
+    # `-p max_gap_s:=0.2`, and a float default for a count would refuse `:=100`.
+    assert type(spec.default) is _expected_type(name.removeprefix("sim:"))
+    assert spec.type_name in {"bool", "int", "double", "string"}
+    assert spec.description.strip()
+
+
+def test_help_lists_every_parameter_with_type_and_default() -> None:
+    text = help_text("title", [("Parameters", PARAMETERS)])
+    for p in PARAMETERS:
+        assert f"{p.name} ({p.type_name}, default {p.default!r})" in text
+
+
+# --- the core parameters from declared values -------------------------------------------------
+
+
+def test_declared_defaults_build_the_core_defaults() -> None:
+    params = estimator_params(_defaults())
+    assert params == EstimatorParams()
+    assert params.limits == InputLimits()
+
+
+def test_declared_values_reach_the_core_parameters() -> None:
+    values = _defaults() | {
+        "window_steps": 50,
+        "max_input_age_s": 0.02,
+        "max_gap_s": 0.3,
+        "min_speed_mps": 3.0,
+        "limits.speed_mps": 70.0,
+        "limits.acceleration_mps2": 30.0,
+        "limits.yaw_rate_radps": 2.0,
+        "limits.stl_m": 0.2,
+    }
+    params = estimator_params(values)
+    assert params == EstimatorParams(
+        window_steps=50,
+        max_input_age_s=0.02,
+        max_gap_s=0.3,
+        min_speed_mps=3.0,
+        limits=InputLimits(speed_mps=70.0, acceleration_mps2=30.0, yaw_rate_radps=2.0, stl_m=0.2),
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("window_steps", 0), ("window_steps", -5), ("max_input_age_s", 0.0),
+     ("max_input_age_s", math.nan), ("max_gap_s", -0.1), ("max_gap_s", math.inf),
+     ("min_speed_mps", -1.0), ("limits.speed_mps", 0.0), ("limits.acceleration_mps2", -1.0),
+     ("limits.yaw_rate_radps", math.nan), ("limits.stl_m", math.inf)],
+)  # fmt: skip
+def test_bad_value_is_a_value_error_naming_the_parameter(name: str, value: object) -> None:
+    with pytest.raises(ValueError, match=name.removeprefix("limits.")):
+        estimator_params(_defaults() | {name: value})
+
+
+def test_backend_parameter_describes_every_registered_backend() -> None:
+    backend = next(p for p in PARAMETERS if p.name == "backend")
+    for name in BACKENDS:
+        assert name in backend.description
+    assert backend.default in BACKENDS
+
+
+def test_sim_parameter_defaults_are_valid_choices() -> None:
+    specs = _sim_specs()
+    assert specs["noise"].default in NOISE_PROFILES
+    assert specs["vehicle"].default in shipped_vehicles()
+    assert select_runs(str(specs["scenario"].default))
+
+
+# --- config YAMLs -------------------------------------------------------------------------------
+
+
+def _yaml_parameters(path: Path) -> dict[str, object]:
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    assert list(data) == ["/**"], f"{path}: expected one '/**' section"
+    assert list(data["/**"]) == ["ros__parameters"]
+    return data["/**"]["ros__parameters"]
+
+
+@pytest.mark.parametrize(
+    ("path", "specs"),
+    [(ESTIMATOR_YAML, _estimator_specs()), (SIM_YAML, _sim_specs())],
+    ids=["estimator.yaml", "sim.yaml"],
+)
+def test_config_yaml_lists_exactly_the_declared_parameters_with_their_defaults(
+    path: Path, specs: dict[str, ParameterSpec]
+) -> None:
+    listed = _yaml_parameters(path)
+    assert sorted(listed) == sorted(specs), f"{path.name} and the declarations differ"
+    for name, spec in specs.items():
+        value = listed[name]
+        # rclpy refuses a value of another type than the declared one (no int for double).
+        assert type(value) is type(spec.default), f"{path.name}: {name} = {value!r}"
+        if isinstance(value, float):
+            # Written with 10 significant digits (1/3.6, radians(0.2)).
+            assert math.isclose(value, spec.default, rel_tol=1e-9), f"{path.name}: {name}"
+        else:
+            assert value == spec.default, f"{path.name}: {name}"
+
+
+def test_estimator_yaml_lists_backend_parameters_under_the_backend_prefix() -> None:
+    listed = _yaml_parameters(ESTIMATOR_YAML)
+    for name, factory in BACKENDS.items():
+        assert {k for k in listed if k.startswith(f"{name}.")} == {
+            f"{name}.{p.name}" for p in factory.parameters
+        }
