@@ -6,6 +6,11 @@ wall-clock time measured in the same run. Targets (issue #2):
 - batch simulation of paper-train >= 1000x real time: measured on one core and as the
   aggregate of all (2) cores;
 - paper-train with paper noise, bags written, in < 60 s on this 2-core machine.
+ROS runtime (issue #3, `bench/ros_runtime.py`): sim node at 400 Hz real time over 30 s,
+rate within 0.5 % and inter-message jitter p99 < 1 ms; estimator end-to-end latency
+(sensor stamp → /sideslip/twist received in another process) p99 < 2 ms. Measured with
+rclpy's EventsExecutor (the nodes' default) and, for comparison in the same run, the
+pure-Python SingleThreadedExecutor.
 """
 
 from __future__ import annotations
@@ -151,9 +156,35 @@ def bench_generate_paper_train(vehicle, jobs: int) -> dict[str, float]:
     }
 
 
+def bench_simulator(vehicle) -> dict[str, object]:
+    print("simulator: node path (one step per call) ...", flush=True)
+    node = bench_node_path(vehicle)
+    print("simulator: batch paper-train on one core ...", flush=True)
+    batch = bench_batch_one_core(vehicle)
+    cores = min(2, os.cpu_count() or 1)
+    print(f"simulator: batch paper-train on {cores} cores ...", flush=True)
+    batch_all = bench_batch_all_cores(vehicle, cores)
+    print(f"generator: paper-train with paper noise, {cores} jobs ...", flush=True)
+    gen = bench_generate_paper_train(vehicle, jobs=cores)
+    return {
+        "single_vehicle_node_path": node,
+        "batch_paper_train_one_core": batch,
+        "batch_paper_train_all_cores": batch_all,
+        "generate_paper_train_paper_noise": gen,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench/results.json"))
+    parser.add_argument(
+        "--sections",
+        nargs="+",
+        choices=["simulator", "ros"],
+        default=["simulator", "ros"],
+        help="which benchmark sections to run (others keep their previous results)",
+    )
+    parser.add_argument("--ros-seconds", type=float, default=30.0)
     args = parser.parse_args(argv)
     vehicle = load_vehicle("paper_sedan")
     results: dict[str, object] = {
@@ -167,27 +198,32 @@ def main(argv: list[str] | None = None) -> int:
         },
         "command": "make bench",
     }
-    print("simulator: node path (one step per call) ...", flush=True)
-    node = bench_node_path(vehicle)
-    print("simulator: batch paper-train on one core ...", flush=True)
-    batch = bench_batch_one_core(vehicle)
-    cores = min(2, os.cpu_count() or 1)
-    print(f"simulator: batch paper-train on {cores} cores ...", flush=True)
-    batch_all = bench_batch_all_cores(vehicle, cores)
-    print(f"generator: paper-train with paper noise, {cores} jobs ...", flush=True)
-    gen = bench_generate_paper_train(vehicle, jobs=cores)
-    results["simulator"] = {
-        "single_vehicle_node_path": node,
-        "batch_paper_train_one_core": batch,
-        "batch_paper_train_all_cores": batch_all,
-        "generate_paper_train_paper_noise": gen,
-    }
+    if "simulator" in args.sections:
+        results["simulator"] = bench_simulator(vehicle)
+    if "ros" in args.sections:
+        from ros_runtime import run as run_ros  # imports rclpy: only when asked for
+
+        ros = {}
+        for executor in ("events", "single_threaded"):
+            print(f"ros: sim + estimator + listener, {executor} executor ...", flush=True)
+            ros[executor] = run_ros(args.ros_seconds, executor)
+        results["ros_runtime"] = ros
+    for section in ("simulator", "ros_runtime"):
+        if section in results:
+            results[section]["measured"] = {  # type: ignore[index]
+                "date_utc": results["date_utc"],
+                "commit": results["commit"],
+            }
     previous = json.loads(args.out.read_text()) if args.out.exists() else {}
     # Keep other sections (later issues add theirs); replace what this run measured.
     previous.update(results)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(previous, indent=2) + "\n")
-    print(json.dumps(results["simulator"], indent=2))
+    print(
+        json.dumps(
+            {k: v for k, v in results.items() if k in ("simulator", "ros_runtime")}, indent=2
+        )
+    )
     return 0
 
 

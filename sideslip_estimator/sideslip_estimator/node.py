@@ -27,6 +27,7 @@ from sideslip_msgs_py import topics
 from sideslip_msgs_py.errors import MessageFieldError
 from sideslip_msgs_py.messages import (
     RclpyMessages,
+    fill_sideslip_twist,
     imu_fields,
     sideslip_message,
     sideslip_twist_message,
@@ -86,6 +87,7 @@ class EstimatorNode(rclpy.node.Node):
         self.pub_status = self.create_publisher(
             msgs.DiagnosticArray, topics.SIDESLIP_STATUS, profile_for(topics.SIDESLIP_STATUS)
         )
+        self._twist_msg = sideslip_twist_message(self.msgs, 0, 0.0, 0.0, 0.0, 0.0)
         self._latencies: list[float] = []
         self._seen = self._counts()
         self._logged: dict[str, float] = {}
@@ -130,8 +132,13 @@ class EstimatorNode(rclpy.node.Node):
         est = out.estimate
         self.pub_beta.publish(sideslip_message(self.msgs, est.beta_rad))
         self.pub_twist.publish(
-            sideslip_twist_message(
-                self.msgs, out.stamp_ns, out.v_x_mps, est.beta_rad, est.variance_rad2, self.var_vx
+            fill_sideslip_twist(
+                self._twist_msg,
+                out.stamp_ns,
+                out.v_x_mps,
+                est.beta_rad,
+                est.variance_rad2,
+                self.var_vx,
             )
         )
         self._latencies.append(time.perf_counter() - start)

@@ -36,6 +36,7 @@ trusting a fake zero.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final, NamedTuple, Protocol
@@ -264,28 +265,57 @@ def sideslip_twist_message(
 ) -> Any:
     """``/sideslip/twist``: v_x and v_y = v_x·tan β̂ with covariance, stamped with the input.
 
-    Covariance (row-major 6×6 over x, y, z, roll, pitch, yaw of the twist): var(v_x)
-    as given; var(v_y) by first-order propagation of v_y = v_x tan β,
-    (v_x sec²β)²·var(β) + tan²β·var(v_x); cov(v_x, v_y) = tan β·var(v_x). The four
-    components the estimator does not provide (v_z and the angular rates) carry
-    :data:`UNMEASURED_VARIANCE`, so robot_localization gives them no weight.
+    See :func:`fill_sideslip_twist` for the fields; this builds a new message.
     """
-    tan_b = float(np.tan(beta_rad))
+    msg = factory.TwistWithCovarianceStamped(
+        header=header(factory, 0),
+        twist=factory.TwistWithCovariance(
+            twist=factory.Twist(linear=_vector3(factory), angular=_vector3(factory)),
+            covariance=np.zeros(36),
+        ),
+    )
+    return fill_sideslip_twist(
+        msg, stamp_ns, v_x_mps, beta_rad, beta_variance_rad2, v_x_variance_m2ps2
+    )
+
+
+def fill_sideslip_twist(
+    msg: Any,
+    stamp_ns: int,
+    v_x_mps: float,
+    beta_rad: float,
+    beta_variance_rad2: float,
+    v_x_variance_m2ps2: float,
+) -> Any:
+    """Write one estimate into a TwistWithCovarianceStamped (either back-end) and return it.
+
+    A node reuses one message: building the nested message anew costs ~50 µs in rclpy,
+    a fifth of the estimator's budget per 400-Hz sample.
+
+    Fields: ``header.stamp`` = the input sample's stamp, ``frame_id`` = base_link;
+    linear.x = v_x, linear.y = v_x·tan β̂, everything else 0. Covariance (row-major 6×6
+    over x, y, z, roll, pitch, yaw of the twist): var(v_x) as given; var(v_y) by
+    first-order propagation of v_y = v_x tan β, (v_x sec²β)²·var(β) + tan²β·var(v_x);
+    cov(v_x, v_y) = tan β·var(v_x). The four components the estimator does not provide
+    (v_z and the angular rates) carry :data:`UNMEASURED_VARIANCE`, so robot_localization
+    gives them no weight.
+    """
+    sec, nanosec = stamp_to_sec_nanosec(stamp_ns)
+    msg.header.stamp.sec = sec
+    msg.header.stamp.nanosec = nanosec
+    msg.header.frame_id = topics.BASE_FRAME
+    tan_b = math.tan(beta_rad)
     sec2 = 1.0 + tan_b * tan_b
-    var_vy = (v_x_mps * sec2) ** 2 * beta_variance_rad2 + tan_b * tan_b * v_x_variance_m2ps2
-    cov = np.zeros((6, 6))
-    cov[0, 0] = v_x_variance_m2ps2
-    cov[1, 1] = var_vy
-    cov[0, 1] = cov[1, 0] = tan_b * v_x_variance_m2ps2
-    for i in range(2, 6):
-        cov[i, i] = UNMEASURED_VARIANCE
-    twist = factory.Twist(
-        linear=_vector3(factory, v_x_mps, v_x_mps * tan_b), angular=_vector3(factory)
-    )
-    return factory.TwistWithCovarianceStamped(
-        header=header(factory, stamp_ns),
-        twist=factory.TwistWithCovariance(twist=twist, covariance=cov.ravel()),
-    )
+    twist = msg.twist.twist
+    twist.linear.x = float(v_x_mps)
+    twist.linear.y = float(v_x_mps * tan_b)
+    cov = np.zeros(36)
+    cov[0] = v_x_variance_m2ps2
+    cov[1] = cov[6] = tan_b * v_x_variance_m2ps2
+    cov[7] = (v_x_mps * sec2) ** 2 * beta_variance_rad2 + tan_b * tan_b * v_x_variance_m2ps2
+    cov[14] = cov[21] = cov[28] = cov[35] = UNMEASURED_VARIANCE
+    msg.twist.covariance = cov
+    return msg
 
 
 def status_message(
