@@ -27,9 +27,10 @@ _domains = itertools.count()
 
 
 def next_domain() -> int:
-    """A DDS domain id for one test, spread over 1..200 by pid so that concurrent
-    pytest processes on one machine rarely share one."""
-    return 1 + (os.getpid() * 13 + next(_domains)) % 200
+    """A DDS domain id for one test, spread over 1..100 by pid so that concurrent
+    pytest processes on one machine rarely share one (above ~101 Fast DDS's ports
+    reach Linux's ephemeral range)."""
+    return 1 + (os.getpid() * 13 + next(_domains)) % 100
 
 
 def wait_for(predicate: Callable[[], Any], timeout_s: float, what: str, poll_s: float = 0.02):

@@ -22,7 +22,7 @@ from typing import Final
 import numpy as np
 
 from sideslip_msgs_py.features import CHANNELS
-from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
+from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
 
 from .backends import Backend, Estimate
 from .inputs import (
@@ -36,8 +36,9 @@ from .inputs import (
 )
 from .window import SampleWindow
 
-NS_PER_S: Final = 1_000_000_000
 _PERIOD_SAMPLES: Final = 32  # intervals in the running period estimate
+_RATE_CHANGE_SAMPLES: Final = 8  # this many long intervals in a row = a new (lower) rate
+_MAX_BETA_RAD: Final = math.radians(80.0)
 
 
 @dataclass(frozen=True)
@@ -104,6 +105,7 @@ class Estimator:
         self._last_imu_ns: int | None = None
         self._last_accepted_ns: int | None = None
         self._intervals: list[int] = []
+        self._long: list[tuple[int, int]] = []  # (interval, drops counted) in a row
         self.period_ns: int | None = None
         """Median IMU period over recent samples (None until measured)."""
 
@@ -145,7 +147,13 @@ class Estimator:
         self.window.push(row, stamp)
         self._last_accepted_ns = stamp
         self.stats.accepted += 1
-        estimate = self.backend.update(self.window.rows(), self.window.stamps_ns())
+        try:
+            estimate = self.backend.update(self.window.rows(), self.window.stamps_ns())
+        except Exception as err:  # a model fault must not take the node down
+            self.restart("model_error")
+            raise self._reject(
+                InputRejected("model_error", f"{self.backend.model_id} failed: {err!r}")
+            ) from err
         if not self.window.full:
             return None
         v_x = float(row[X_V])
@@ -160,6 +168,11 @@ class Estimator:
             raise self._reject(
                 InputRejected("model_non_finite", f"{self.backend.model_id} returned {estimate}")
             )
+        if not abs(estimate.beta_rad) < _MAX_BETA_RAD or estimate.variance_rad2 < 0.0:
+            # v_y = v_x·tan β is meaningless at ±90°: a model fault, not a car.
+            raise self._reject(
+                InputRejected("model_out_of_range", f"{self.backend.model_id} returned {estimate}")
+            )
         self.stats.estimates += 1
         return Output(stamp, v_x, estimate)
 
@@ -171,6 +184,7 @@ class Estimator:
                 raise self._reject(InputRejected("duplicate_stamp", f"IMU stamp {stamp} repeated"))
             self._last_imu_ns = stamp
             self.restart("stamp_backwards")
+            self.aligner.forget_after(stamp)  # inputs from the old time line
             return
         self._last_imu_ns = stamp
         if last is None:
@@ -178,9 +192,21 @@ class Estimator:
         interval = stamp - last
         period = self.period_ns
         if period is not None and interval > 1.5 * period:
-            if interval <= self._max_gap_ns:
-                self.stats.dropped += round(interval / period) - 1
-            return  # gaps never enter the period estimate
+            if interval > self._max_gap_ns:
+                self._long.clear()
+                return  # a gap: restarts the window, never enters the period estimate
+            drops = round(interval / period) - 1
+            self.stats.dropped += drops
+            self._long.append((interval, drops))
+            if len(self._long) >= _RATE_CHANGE_SAMPLES:
+                # Not drops but a slower source (a 100-Hz bag after a 400-Hz run):
+                # take the new period and withdraw the drops counted for it.
+                self.stats.dropped -= sum(d for _, d in self._long)
+                self.period_ns = int(np.median([i for i, _ in self._long]))
+                self._long.clear()
+                self._intervals.clear()
+            return
+        self._long.clear()
         self._intervals.append(interval)
         if len(self._intervals) >= _PERIOD_SAMPLES:
             self.period_ns = int(np.median(self._intervals))
@@ -194,6 +220,11 @@ class Estimator:
         self.window.clear()
         self.backend.reset()
         self._last_accepted_ns = None
+        if why == "stamp_backwards":
+            # Another recording or a restarted source: its rate may differ.
+            self.period_ns = None
+            self._intervals.clear()
+            self._long.clear()
 
     @property
     def fill(self) -> tuple[int, int]:

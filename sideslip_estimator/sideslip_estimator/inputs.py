@@ -11,15 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.features import CHANNELS, channel_indices
-from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
-
-NS_PER_S: Final = 1_000_000_000
+from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
 
 X_V, Y_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
     ("x_v_mps", "y_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
@@ -90,9 +87,14 @@ class Aligner:
         self.steering: SteeringFields | None = None
         self._row = np.zeros(len(CHANNELS))
 
-    def clear(self) -> None:
-        self.twist = None
-        self.steering = None
+    def forget_after(self, imu_stamp_ns: int) -> None:
+        """Drop held inputs stamped later than ``imu_stamp_ns`` + the age limit: after a
+        stamp jump backwards they belong to the old time line."""
+        limit = imu_stamp_ns + self.max_age_ns
+        if self.twist is not None and self.twist.stamp_ns > limit:
+            self.twist = None
+        if self.steering is not None and self.steering.stamp_ns > limit:
+            self.steering = None
 
     def _age_ok(self, name: str, imu_stamp_ns: int, stamp_ns: int) -> None:
         age = imu_stamp_ns - stamp_ns

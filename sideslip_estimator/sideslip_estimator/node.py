@@ -11,12 +11,14 @@ dropped samples, and latency stays bounded by that short queue.
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy.node
+from rclpy.clock import Clock, ClockType
 
 from sideslip_estimator.backends import BackendError, backend_factory
 from sideslip_estimator.estimator import Estimator
@@ -37,7 +39,7 @@ from sideslip_msgs_py.messages import (
 )
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.nodes.runtime import StopFlag, run
+from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
 from sideslip_msgs_py.parameters import help_text
 
 NODE_NAME = "sideslip_estimator"
@@ -48,14 +50,19 @@ class EstimatorNode(rclpy.node.Node):
     def __init__(self, flag: StopFlag) -> None:
         super().__init__(NODE_NAME)
         del flag  # runs until signalled
-        v = declare(self, PARAMETERS)
         try:
+            v = declare(self, PARAMETERS)
             factory = backend_factory(v["backend"])
             backend_values = declare(self, factory.parameters, prefix=f"{v['backend']}.")
             params = estimator_params(v)
             backend = factory(backend_values, params.window_steps)
-            if not v["status_rate_hz"] > 0.0:
-                raise ValueError(f"status_rate_hz must be > 0, got {v['status_rate_hz']}")
+            for name in ("status_rate_hz", "silence_timeout_s"):
+                if not (math.isfinite(v[name]) and v[name] > 0.0):
+                    raise ValueError(f"{name} must be finite and > 0, got {v[name]}")
+            if not (math.isfinite(v["velocity_sigma_mps"]) and v["velocity_sigma_mps"] >= 0.0):
+                raise ValueError(
+                    f"velocity_sigma_mps must be finite and >= 0, got {v['velocity_sigma_mps']}"
+                )
         except (BackendError, ValueError) as err:
             self.get_logger().fatal(f"bad parameter: {err}")
             raise SystemExit(2) from None
@@ -92,17 +99,26 @@ class EstimatorNode(rclpy.node.Node):
         self._seen = self._counts()
         self._logged: dict[str, float] = {}
         self._wrong_types_logged: set[str] = set()
-        self.create_timer(1.0 / float(v["status_rate_hz"]), self._publish_status)
+        # On the steady clock: with use_sim_time the ROS clock stops when /clock does,
+        # and that is exactly when the status must report the silence.
+        self.create_timer(
+            1.0 / float(v["status_rate_hz"]),
+            self._publish_status,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
         self.get_logger().info(
             f"backend {backend.model_id}, window {params.window_steps} samples; "
             f"inputs {', '.join(self._last_rx)}"
         )
 
     # --- inputs ---------------------------------------------------------------------------
-    def _received(self, topic: str) -> None:
-        self._last_rx[self.inputs[topic][0].topic_name] = time.monotonic()
+    def _received(self, topic: str) -> str:
+        """Note the arrival; returns the topic's name as subscribed (after remapping)."""
+        name = self.inputs[topic][0].topic_name
+        self._last_rx[name] = time.monotonic()
+        return name
 
-    def _guard(self, topic: str, action: Callable[[], Any]) -> Any:
+    def _guard(self, action: Callable[[], Any]) -> Any:
         try:
             return action()
         except InputRejected as err:
@@ -113,20 +129,17 @@ class EstimatorNode(rclpy.node.Node):
         return None
 
     def _on_twist(self, msg: Any) -> None:
-        self._received(topics.TWIST)
-        self._guard(topics.TWIST, lambda: self.core.on_twist(topics.TWIST, twist_fields(msg)))
+        name = self._received(topics.TWIST)
+        self._guard(lambda: self.core.on_twist(name, twist_fields(msg)))
 
     def _on_steering(self, msg: Any) -> None:
-        self._received(topics.STEERING)
-        self._guard(
-            topics.STEERING,
-            lambda: self.core.on_steering(topics.STEERING, steering_fields(msg)),
-        )
+        name = self._received(topics.STEERING)
+        self._guard(lambda: self.core.on_steering(name, steering_fields(msg, name)))
 
     def _on_imu(self, msg: Any) -> None:
         start = time.perf_counter()
-        self._received(topics.IMU)
-        out = self._guard(topics.IMU, lambda: self.core.on_imu(topics.IMU, imu_fields(msg)))
+        name = self._received(topics.IMU)
+        out = self._guard(lambda: self.core.on_imu(name, imu_fields(msg)))
         if out is None:
             return
         est = out.estimate
@@ -212,8 +225,7 @@ class EstimatorNode(rclpy.node.Node):
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv if argv is None else argv)
-    user_args = args[1 : args.index("--ros-args")] if "--ros-args" in args else args[1:]
-    if "-h" in user_args or "--help" in user_args:
+    if wants_help(args):
         from sideslip_estimator.backends import BACKENDS
 
         groups = [("Parameters", PARAMETERS)] + [

@@ -13,6 +13,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,7 +23,7 @@ from sideslip_msgs_py import topics
 from sideslip_msgs_py.messages import RclpyMessages, clock_message
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.nodes.runtime import StopFlag, run
+from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
 from sideslip_msgs_py.parameters import ParameterSpec, help_text
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim.maneuvers import ManeuverError
@@ -35,6 +36,8 @@ from sideslip_sim.vehicle import VehicleFileError, load_vehicle
 NODE_NAME = "sideslip_sim"
 STEP_HZ = round(1.0 / DT_S)
 _SLEEP_GRANULARITY_S = 0.0002  # wake this early and spin the rest: sleep() overshoots
+_LONG_WAIT_S = 0.005
+_LATENESS_KEPT = 240_000  # last 10 min at 400 Hz: bounded memory when looping for days
 
 PARAMETERS = (
     ParameterSpec(
@@ -71,7 +74,8 @@ PARAMETERS = (
     ParameterSpec(
         "wait_for_subscribers",
         0,
-        "Hold the start until this many subscribers match /vehicle/imu (0 = start now).",
+        "Hold the start until every published topic has this many subscribers (0 = start "
+        "now). With only an estimator listening, set ground_truth false or it waits on.",
     ),
     ParameterSpec("maneuver.duration_s", 20.0, "Family runs: duration [s]."),
     ParameterSpec("maneuver.speed_kmh", 80.0, "Family runs: initial speed [km/h]."),
@@ -107,8 +111,8 @@ class SimNode(rclpy.node.Node):
     def __init__(self, flag: StopFlag) -> None:
         super().__init__(NODE_NAME)
         self._flag = flag
-        v = declare(self, PARAMETERS)
         try:
+            v = declare(self, PARAMETERS)
             rtf = float(v["real_time_factor"])
             if not rtf >= 0.0:
                 raise ParameterError(f"real_time_factor must be >= 0, got {rtf}")
@@ -152,8 +156,8 @@ class SimNode(rclpy.node.Node):
         self._msgs = msgs
         self.wait_for_subscribers = int(v["wait_for_subscribers"])
         self.steps_published = 0
-        self.lateness_s: list[float] = []
-        """Publish time − due time of each real-time step [s] (logged at the end)."""
+        self.lateness_s: deque[float] = deque(maxlen=_LATENESS_KEPT)
+        """Publish time − due time of recent real-time steps [s] (logged at the end)."""
         self.get_logger().info(
             f"{v['scenario']} on {vehicle.name}: {len(runs)} run(s), noise {v['noise']}, "
             f"{STEP_HZ / decimation:g} Hz, real_time_factor {rtf:g}"
@@ -178,9 +182,9 @@ class SimNode(rclpy.node.Node):
         self._flag.set("finished")
 
     def _wait_for_subscribers(self) -> None:
-        imu = self.pubs[topics.IMU]
-        while self.wait_for_subscribers and not self._flag.is_set():
-            if imu.get_subscription_count() >= self.wait_for_subscribers:
+        n = self.wait_for_subscribers
+        while n and not self._flag.is_set():
+            if all(p.get_subscription_count() >= n for p in self.pubs.values()):
                 break
             self._flag.wait(0.05)
 
@@ -202,22 +206,31 @@ class SimNode(rclpy.node.Node):
                     return
                 if self.rtf > 0.0:
                     due = start_wall + (stamp - origin_ns) * 1e-9 / self.rtf
-                    self._sleep_until(due)
+                    if not self._sleep_until(due):
+                        return
                 if self.clock_pub is not None:
                     self.clock_pub.publish(clock_message(self._msgs, stamp))
                 for publish, messages in rows:
                     publish(messages[i].tobytes())
                 self.steps_published += 1
 
-    def _sleep_until(self, due: float) -> None:
+    def _sleep_until(self, due: float) -> bool:
+        """Wait until ``due`` (monotonic s); False when a stop was requested meanwhile."""
         now = time.monotonic()
-        if due - now > _SLEEP_GRANULARITY_S:
-            # clock_nanosleep on the monotonic clock: wakes within tens of µs on an idle
-            # core. A stop request waits at most one step.
-            time.sleep(due - now - _SLEEP_GRANULARITY_S)
+        wait = due - now - _SLEEP_GRANULARITY_S
+        if wait > _LONG_WAIT_S:
+            # Long waits (the pause between runs, slow real-time factors) watch the
+            # stop flag; Event.wait is less punctual, so it stops short of the step.
+            if self._flag.wait(wait - _LONG_WAIT_S):
+                return False
+            wait = due - time.monotonic() - _SLEEP_GRANULARITY_S
+        if wait > 0.0:
+            # clock_nanosleep on the monotonic clock: wakes within tens of µs.
+            time.sleep(wait)
         while (now := time.monotonic()) < due:
             pass
         self.lateness_s.append(now - due)
+        return not self._flag.is_set()
 
     def close(self) -> None:
         self._flag.set()
@@ -226,8 +239,7 @@ class SimNode(rclpy.node.Node):
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv if argv is None else argv)
-    user_args = args[1 : args.index("--ros-args")] if "--ros-args" in args else args[1:]
-    if "-h" in user_args or "--help" in user_args:
+    if wants_help(args):
         print(
             help_text(
                 "sideslip-sim (ros2 run sideslip_sim sim_node): full-vehicle simulator "

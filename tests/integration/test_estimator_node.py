@@ -290,8 +290,33 @@ def test_signal_stops_the_estimator_within_2_s_with_exit_0(estimator, sig):
     assert seconds < 2.0
 
 
-def test_bad_parameter_exits_2_with_the_parameter_named(spawn):
-    child = spawn("sideslip-estimator", "--ros-args", "-p", "backend:=magic")
+@pytest.mark.parametrize(
+    ("param", "named"),
+    [
+        ("backend:=magic", "unknown backend 'magic'"),
+        ("velocity_sigma_mps:=.nan", "velocity_sigma_mps"),
+        ("silence_timeout_s:=0.0", "silence_timeout_s"),
+        ("window_steps:=100.0", "window_steps must be a int"),
+        ("kinematic.smoothing_steps:=500", "kinematic.smoothing_steps"),
+    ],
+)
+def test_bad_parameter_exits_2_with_the_parameter_named(spawn, param, named):
+    child = spawn("sideslip-estimator", "--ros-args", "-p", param)
     code = child.proc.wait(30)
-    assert code == 2
-    assert "unknown backend 'magic'" in child.output()
+    assert code == 2, child.output()
+    assert named in child.output()
+    assert "Traceback" not in child.output()
+
+
+def test_status_keeps_coming_with_use_sim_time_and_no_clock(spawn, probe):
+    spawn(
+        "sideslip-estimator", "--ros-args", "-p", "use_sim_time:=true", "-p", "status_rate_hz:=10.0"
+    )
+    status = probe.subscribe(
+        topics.SIDESLIP_STATUS, DiagnosticArray, profile_for(topics.SIDESLIP_STATUS)
+    )
+    # Nobody publishes /clock: the status must still report that no input arrives.
+    found = wait_for(lambda: len(status) >= 3, 30, "three status messages without /clock")
+    assert found
+    level, message, _ = status_values(status[-1].msg)
+    assert level == 1 and "no message yet" in message

@@ -10,7 +10,7 @@ import pytest
 from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 from ros_support import wait_for
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 from sideslip_msgs_py import topics
@@ -22,6 +22,20 @@ SHORT_RUN = ("-p", "scenario:=sine_steer", "-p", "maneuver.duration_s:=4.0")
 
 def sim_args(*extra: str) -> list[str]:
     return ["--ros-args", *SHORT_RUN, *extra]
+
+
+SAMPLE_TYPES = {
+    topics.IMU: Imu,
+    topics.TWIST: TwistStamped,
+    topics.STEERING: JointState,
+    topics.GROUND_TRUTH_TWIST: TwistStamped,
+    topics.GROUND_TRUTH_SIDESLIP: Float64,
+}
+
+
+def subscribe_all(probe) -> dict[str, list]:
+    """Subscribe every topic the sim publishes (what wait_for_subscribers waits for)."""
+    return {t: probe.subscribe(t, m, profile_for(t)) for t, m in SAMPLE_TYPES.items()}
 
 
 def truth_by_stamp(inbox) -> dict[int, float]:
@@ -73,10 +87,8 @@ def test_sideslip_follows_ground_truth_on_a_noise_free_run(spawn, probe, backend
 
 
 def test_sim_publishes_one_stamp_per_step_at_400_hz_and_clock(spawn, probe):
-    imu = probe.subscribe(topics.IMU, Imu, profile_for(topics.IMU))
-    gt = probe.subscribe(
-        topics.GROUND_TRUTH_TWIST, TwistStamped, profile_for(topics.GROUND_TRUTH_TWIST)
-    )
+    inboxes = subscribe_all(probe)
+    imu, gt = inboxes[topics.IMU], inboxes[topics.GROUND_TRUTH_TWIST]
     clock = probe.subscribe(topics.CLOCK, Clock, profile_for(topics.CLOCK))
     sim = spawn(
         "sideslip-sim",
@@ -97,7 +109,7 @@ def test_sim_publishes_one_stamp_per_step_at_400_hz_and_clock(spawn, probe):
 
 
 def test_real_time_factor_zero_runs_as_fast_as_possible(spawn, probe):
-    imu = probe.subscribe(topics.IMU, Imu, profile_for(topics.IMU))
+    imu = subscribe_all(probe)[topics.IMU]
     sim = spawn(
         "sideslip-sim",
         *sim_args(
@@ -123,6 +135,30 @@ def test_signal_stops_the_sim_within_2_s_with_exit_0(spawn, probe, sig):
     assert seconds < 2.0
 
 
+def test_signal_during_the_pause_between_runs_stops_the_sim_at_once(spawn, probe):
+    imu = probe.subscribe(topics.IMU, Imu, profile_for(topics.IMU))
+    # 0.1-s runs at 1/20 of real time: 2 s of driving, then a 10-s pause between runs.
+    sim = spawn(
+        "sideslip-sim",
+        "--ros-args",
+        "-p",
+        "scenario:=straight",
+        "-p",
+        "maneuver.duration_s:=0.1",
+        "-p",
+        "loop:=true",
+        "-p",
+        "real_time_factor:=0.05",
+    )
+    wait_for(lambda: len(imu) > 0, 30, "the sim publishing")
+    n = len(imu)
+    wait_for(lambda: len(imu) >= n + 30, 10, "the end of the first run")
+    code, seconds = sim.stop(signal.SIGINT)
+    assert code == 0, sim.output()
+    assert seconds < 2.0
+    assert "Traceback" not in sim.output()
+
+
 @pytest.mark.parametrize(
     ("args", "named"),
     [
@@ -131,6 +167,7 @@ def test_signal_stops_the_sim_within_2_s_with_exit_0(spawn, probe, sig):
         (("-p", "vehicle:=/nonexistent.yaml"), "/nonexistent.yaml"),
         (("-p", "noise:=loud"), "unknown noise profile 'loud'"),
         (("-p", "real_time_factor:=-1.0"), "real_time_factor"),
+        (("-p", "rate_hz:=400"), "rate_hz must be a double"),
     ],
 )
 def test_bad_parameter_exits_2_naming_it(spawn, args, named):

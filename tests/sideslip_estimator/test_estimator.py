@@ -434,3 +434,58 @@ def test_raw_kinematic_estimate_of_exact_samples_is_the_ground_truth(
         assert o.stamp_ns == sine_run.stamp_ns[i]
     assert est.stats.rejected == {} and est.stats.dropped == 0 and not est.stats.resets
     assert est.period_ns == STEP_NS
+
+
+class _FaultyBackend(_NanBackend):
+    """A back-end that raises (a shape error in a model, a singular matrix, ...)."""
+
+    model_id = "faulty-model"
+
+    def update(
+        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+    ) -> Estimate | None:
+        raise np.linalg.LinAlgError("singular matrix")
+
+
+class _RightAngleBackend(_NanBackend):
+    model_id = "right-angle-model"
+
+    def update(
+        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+    ) -> Estimate | None:
+        return Estimate(math.pi / 2, 0.0)
+
+
+def test_a_backend_exception_is_a_rejection_and_restarts_the_window() -> None:
+    est = Estimator(_FaultyBackend(), EstimatorParams(window_steps=2))
+    with pytest.raises(InputRejected) as info:
+        _step(est, 0)
+    assert info.value.reason == "model_error" and "singular matrix" in str(info.value)
+    assert est.stats.resets["model_error"] == 1 and len(est.window) == 0
+
+
+def test_a_backend_beta_of_90_degrees_is_rejected() -> None:
+    est = Estimator(_RightAngleBackend(), EstimatorParams(window_steps=1))
+    with pytest.raises(InputRejected) as info:
+        _step(est, 0)
+    assert info.value.reason == "model_out_of_range"
+
+
+def test_a_lower_input_rate_is_learnt_instead_of_counted_as_drops_forever() -> None:
+    est = _estimator(max_gap_s=1.0)
+    _run(est, range(0, 100))  # 400 Hz
+    assert est.period_ns == STEP_NS and est.stats.dropped == 0
+    _run(est, range(100, 400, 4))  # then 100 Hz: every 4th step
+    assert est.period_ns == 4 * STEP_NS
+    assert est.stats.dropped == 0
+    _run(est, [400, 404, 412])  # one real drop at the new rate
+    assert est.stats.dropped == 1
+
+
+def test_a_stamp_jump_back_forgets_the_old_period_and_inputs() -> None:
+    est = _estimator()
+    _run(est, range(0, 50))
+    assert est.period_ns == STEP_NS
+    out = _run(est, range(-1000, -1000 + 3 * WINDOW))
+    assert est.stats.resets["stamp_backwards"] == 1
+    assert out[-1] is not None  # refilled from the new time line

@@ -158,10 +158,13 @@ def test_sample_row_has_the_channels_in_contract_order_from_the_latest_values() 
     np.testing.assert_array_equal(row, [expected[c] for c in CHANNELS])
 
 
-def test_clear_forgets_twist_and_steering() -> None:
+def test_forget_after_drops_inputs_from_a_later_time_line_only() -> None:
     a = _aligner()
     a.twist, a.steering = TWIST, STEER
-    a.clear()
+    a.forget_after(IMU.stamp_ns)  # same time line: kept
+    assert a.twist is TWIST and a.steering is STEER
+    a.forget_after(TWIST.stamp_ns - 10**9)  # the IMU jumped a second back
+    assert a.twist is None and a.steering is None
     with pytest.raises(InputRejected, match="no twist"):
         a.sample(IMU)
 

@@ -14,7 +14,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol
+from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -48,6 +48,7 @@ class StopFlag:
     def __init__(self) -> None:
         self._event = threading.Event()
         self.signal_name: str | None = None
+        """Why it was set: SIGINT, SIGTERM, finished, error, ..."""
 
     def set(self, reason: str | None = None) -> None:
         if reason is not None and self.signal_name is None:
@@ -61,16 +62,12 @@ class StopFlag:
         return self._event.wait(timeout_s)
 
 
-class Closable(Protocol):
-    def close(self) -> None: ...
-
-
 def install_signal_handlers(flag: StopFlag) -> None:
-    """SIGINT and SIGTERM set ``flag`` (a second SIGINT still interrupts Python)."""
+    """SIGINT and SIGTERM set ``flag``."""
 
     def handler(signum: int, _frame: Any) -> None:
-        if flag.is_set() and signum == signal.SIGINT:
-            signal.default_int_handler(signum, _frame)
+        # Repeated signals are ignored: a second Ctrl-C while a recorder writes its
+        # bag's summary must not leave the bag without one. SIGKILL still ends anything.
         flag.set(signal.Signals(signum).name)
 
     signal.signal(signal.SIGINT, handler)
@@ -115,4 +112,16 @@ def run(
         executor.shutdown(timeout_sec=1.0)
         if rclpy.ok():
             rclpy.shutdown()
+    if flag.signal_name == "error":  # the node failed after start-up (it logged why)
+        code = code or 1
     return code
+
+
+def user_args(argv: Sequence[str]) -> list[str]:
+    """The arguments before ``--ros-args`` (argv[0] excluded): a node's own options."""
+    args = list(argv[1:])
+    return args[: args.index("--ros-args")] if "--ros-args" in args else args
+
+
+def wants_help(argv: Sequence[str]) -> bool:
+    return any(a in ("-h", "--help") for a in user_args(argv))

@@ -17,7 +17,6 @@ from sideslip_msgs_py import topics as contract
 
 from .errors import OptionError, UnknownTypeError
 
-EXIT_OK: Final = 0
 EXIT_BAD_INPUT: Final = 2
 """Exit status for input we refuse (a one-line message on stderr says why)."""
 

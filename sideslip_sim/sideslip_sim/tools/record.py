@@ -21,6 +21,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Final
 
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from sideslip_msgs_py.errors import BagError
@@ -142,10 +143,14 @@ class Recorder(Node):
         self._specs: dict[str, QosSpec] = {}
         self._warned: set[tuple[str, str]] = set()
         self._discover()
-        self.create_timer(DISCOVERY_PERIOD_S, self._discover)
-        self.create_timer(FLUSH_PERIOD_S, sink.flush)
+        # Steady clock: with use_sim_time, ROS-time timers would stop with /clock.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
+        self.create_timer(FLUSH_PERIOD_S, sink.flush, clock=steady)
         if options.max_duration_s is not None:
-            self._stop_timer = self.create_timer(options.max_duration_s, self._on_max_duration)
+            self._stop_timer = self.create_timer(
+                options.max_duration_s, self._on_max_duration, clock=steady
+            )
         self.get_logger().info(
             f"recording to {sink.path}: waiting for publishers on {len(self._wanted)} topic(s)"
         )
@@ -202,8 +207,10 @@ class Recorder(Node):
     # --- messages ---------------------------------------------------------------------------
 
     def _on_message(self, topic: str, data: bytes) -> None:
+        # One message per callback, stamped as it is taken: taking a topic's backlog in
+        # a batch would stamp a burst of one topic before the other topics' messages of
+        # the same instants, and a replay would then deliver them out of step.
         self._sink.write(topic, time.time_ns(), data)
-        self._drain(topic, DRAIN_BATCH)
 
     def _drain(self, topic: str, limit: int) -> bool:
         """Store up to ``limit`` more waiting messages of ``topic``; True if more may wait.

@@ -43,8 +43,3 @@ class Schedule:
         within one pass.
         """
         return self.t_first_ns + max(0, round((now_ns - self.start_ns) * self.rate))
-
-
-def seconds_until(deadline_ns: int, now_ns: int) -> float:
-    """Time left until ``deadline_ns`` [s]; ≤ 0 when it has passed."""
-    return (deadline_ns - now_ns) * 1e-9
