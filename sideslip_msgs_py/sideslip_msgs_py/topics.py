@@ -73,7 +73,10 @@ SENSOR_TOPICS: Final[tuple[str, ...]] = (TWIST, STEERING, IMU)
 
 In publish order, the IMU last: the estimator forms a sample when an IMU message
 arrives, from the latest twist and steering, so a step whose messages share one stamp
-must deliver its twist and steering first (the sim node and our bags do)."""
+should send its twist and steering first (the sim node and our bags do). DDS does not
+order messages across topics, so this is a preference, not a guarantee: a twist that
+arrives after its IMU leaves that sample with the previous step's twist (2.5 ms older,
+within max_input_age_s)."""
 
 GROUND_TRUTH_TOPICS: Final[tuple[str, ...]] = (GROUND_TRUTH_TWIST, GROUND_TRUTH_SIDESLIP)
 """Simulator-only labels; optional in bags recorded from a real car."""
