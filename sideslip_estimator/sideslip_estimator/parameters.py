@@ -10,7 +10,12 @@ from .estimator import EstimatorParams
 from .inputs import InputLimits
 
 PARAMETERS = (
-    ParameterSpec("backend", "kinematic", "Estimator back-end: kinematic or single_track."),
+    ParameterSpec(
+        "backend",
+        "kinematic",
+        "Estimator back-end: kinematic (atan2(Y_v, X_v)), single_track (bicycle-model "
+        "Kalman filter) or pso_lstm (an exported network, pso_lstm.model_file).",
+    ),
     ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
     ParameterSpec(
         "max_input_age_s",

@@ -21,6 +21,7 @@ from sideslip_estimator.backends import (
     create_backend,
 )
 from sideslip_estimator.backends.kinematic import KinematicBackend
+from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
 from sideslip_estimator.backends.single_track import SingleTrackBackend
 from sideslip_estimator.estimator import Estimator, EstimatorParams
 from sideslip_msgs_py.features import CHANNELS
@@ -47,19 +48,26 @@ def _rows(x_v: list[float], y_v: list[float]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_registry_holds_kinematic_and_single_track() -> None:
-    assert BACKENDS == {"kinematic": KinematicBackend, "single_track": SingleTrackBackend}
+    assert BACKENDS == {
+        "kinematic": KinematicBackend,
+        "single_track": SingleTrackBackend,
+        "pso_lstm": PsoLstmBackend,
+    }
     for name, factory in BACKENDS.items():
         assert factory.name == name
         assert backend_factory(name) is factory
 
 
 def test_unknown_backend_is_an_error_listing_the_known_ones() -> None:
-    with pytest.raises(BackendError, match=r"'pso_lstm'.*kinematic, single_track"):
-        create_backend("pso_lstm", {}, 100)
+    with pytest.raises(BackendError, match=r"'transformer'.*kinematic, single_track, pso_lstm"):
+        create_backend("transformer", {}, 100)
 
 
-def test_every_backend_builds_from_its_declared_defaults() -> None:
+def test_every_model_free_backend_builds_from_its_declared_defaults() -> None:
+    # pso_lstm's default is the shipped model: test_pso_lstm_backend.py covers it.
     for name, factory in BACKENDS.items():
+        if name == "pso_lstm":
+            continue
         values = {p.name: p.default for p in factory.parameters}
         backend = create_backend(name, values, 100)
         assert backend.name == name and backend.model_id.startswith(name)

@@ -43,9 +43,16 @@ def _defaults() -> dict[str, object]:
 
 FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm")
 FLOAT_NAMES = {"mu", "real_time_factor"}
-INT_NAMES = {"window_steps", "smoothing_steps", "seed", "randomized_count", "wait_for_subscribers"}
+INT_NAMES = {
+    "window_steps",
+    "smoothing_steps",
+    "seed",
+    "randomized_count",
+    "wait_for_subscribers",
+    "threads",
+}
 BOOL_NAMES = {"publish_clock", "loop", "ground_truth"}
-STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise"}
+STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise", "model_file"}
 
 
 def _expected_type(full_name: str) -> type:

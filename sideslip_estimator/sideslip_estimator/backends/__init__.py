@@ -11,11 +11,13 @@ from collections.abc import Mapping
 
 from .base import Backend, BackendError, BackendFactory, Estimate
 from .kinematic import KinematicBackend
+from .pso_lstm import PsoLstmBackend  # imports torch only when built
 from .single_track import SingleTrackBackend, SingleTrackParams
 
 BACKENDS: dict[str, BackendFactory] = {
     KinematicBackend.name: KinematicBackend,
     SingleTrackBackend.name: SingleTrackBackend,
+    PsoLstmBackend.name: PsoLstmBackend,
 }
 
 

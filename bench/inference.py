@@ -1,0 +1,158 @@
+"""Per-sample cost of the pso_lstm back-end: p50/p99 of one ``update()`` call, one CPU thread.
+
+The estimator calls ``update()`` once per IMU sample (400 Hz, a 2.5-ms budget shared
+with alignment, the window and publishing); the target is p99 < 0.5 ms for hidden
+units <= 128. Each configuration gets an artifact of random weights (the cost does not
+depend on their values), the paper's six features and a 100-step window, then
+``--warmup`` untimed and ``--calls`` timed calls on a window that slides by one row per
+call, as in the node.
+
+    python bench/inference.py --json /tmp/inference.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
+from sideslip_estimator.window import SampleWindow
+from sideslip_msgs_py.artifact import ModelMetadata, expected_tensors, write_artifact
+from sideslip_msgs_py.features import CHANNELS
+
+WINDOW_STEPS = 100
+STEP_NS = 2_500_000
+CONFIGS = (("lstm", 32), ("lstm", 64), ("lstm", 128), ("bilstm", 64))
+TARGET_P99_US = 500.0
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def _git_commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+        )
+        return out.stdout.strip() or "unknown"
+    except OSError:
+        return "unknown"
+
+
+def random_artifact(path: Path, architecture: str, hidden: int, seed: int = 0) -> Path:
+    """An artifact of random weights (scaled like torch's init) for the paper's features."""
+    meta = ModelMetadata(
+        architecture=architecture,
+        hidden_units=hidden,
+        layers=1,
+        features=CHANNELS,
+        window_steps=WINDOW_STEPS,
+        dt_s=0.0025,
+        feature_mean=(20.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        feature_std=(5.0, 0.5, 0.5, 4.0, 0.2, 0.02),
+        beta_mean=0.0,
+        beta_std=0.03,
+        training_data_digest="random",
+        provenance={"command": "bench/inference.py"},
+    )
+    rng = np.random.default_rng(seed)
+    bound = 1.0 / np.sqrt(hidden)
+    tensors = {
+        name: rng.uniform(-bound, bound, shape).astype(np.float32)
+        for name, shape in expected_tensors(meta).items()
+    }
+    return write_artifact(path, tensors, meta, force=True)
+
+
+def bench_update(path: Path, calls: int, warmup: int, threads: int) -> dict[str, float]:
+    """Timings [us] of ``update()`` alone (the window push is outside the clock)."""
+    backend = PsoLstmBackend({"model_file": str(path), "threads": threads}, WINDOW_STEPS)
+    window = SampleWindow(WINDOW_STEPS, len(CHANNELS))
+    rng = np.random.default_rng(1)
+    scale = np.array([5.0, 0.5, 0.5, 4.0, 0.2, 0.02])
+    rows = rng.normal(0.0, 1.0, (calls + warmup + WINDOW_STEPS - 1, len(CHANNELS))) * scale
+    rows[:, 0] += 20.0
+    times = np.empty(calls)
+    clock = time.perf_counter_ns
+    for i, row in enumerate(rows):
+        window.push(row, i * STEP_NS)
+        if not window.full:
+            continue
+        r, s = window.rows(), window.stamps_ns()
+        started = clock()
+        estimate = backend.update(r, s)
+        elapsed = clock() - started
+        assert estimate is not None
+        k = i - (WINDOW_STEPS - 1) - warmup
+        if k >= 0:
+            times[k] = elapsed
+    us = times / 1e3
+    return {
+        "calls": calls,
+        "p50_us": float(np.percentile(us, 50)),
+        "p90_us": float(np.percentile(us, 90)),
+        "p99_us": float(np.percentile(us, 99)),
+        "max_us": float(us.max()),
+        "mean_us": float(us.mean()),
+        "p99_within_target": bool(np.percentile(us, 99) < TARGET_P99_US),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        description="p50/p99 of one pso_lstm update() (100-step window) per network size.",
+    )
+    p.add_argument("--calls", type=int, default=10_000, help="timed calls per size (10000)")
+    p.add_argument("--warmup", type=int, default=500, help="untimed calls first (500)")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (1)")
+    p.add_argument("--json", type=Path, metavar="PATH", help="also write the JSON here")
+    args = p.parse_args(argv)
+
+    import torch  # for the version only; the back-end imports it itself
+
+    results = {}
+    with tempfile.TemporaryDirectory(prefix="sideslip-bench-") as tmp:
+        for architecture, hidden in CONFIGS:
+            file = Path(tmp) / f"{architecture}{hidden}.safetensors"
+            path = random_artifact(file, architecture, hidden)
+            key = f"{architecture}_h{hidden}"
+            results[key] = bench_update(path, args.calls, args.warmup, args.threads)
+            print(f"{key}: {results[key]}", file=sys.stderr)
+    report = {
+        "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "commit": _git_commit(),
+        "machine": {"cpu": _cpu_model(), "python": platform.python_version()},
+        "torch": torch.__version__,
+        "threads": args.threads,
+        "window_steps": WINDOW_STEPS,
+        "features": len(CHANNELS),
+        "target_p99_us": TARGET_P99_US,
+        "command": " ".join(["python", "bench/inference.py", *(argv or sys.argv[1:])]),
+        "update": results,
+    }
+    text = json.dumps(report, indent=2)
+    print(text)
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

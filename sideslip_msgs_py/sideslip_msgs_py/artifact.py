@@ -1,0 +1,392 @@
+"""The model artifact: one ``.safetensors`` file of float32 weights plus JSON metadata.
+
+The contract between the trainer (which writes it) and the estimator (which reads it);
+neither imports the other. Layout of the file:
+
+* tensors named as ``torch.nn.LSTM`` / ``torch.nn.Linear`` ``state_dict`` keys of a
+  network whose attributes are ``lstm`` and ``head`` (:func:`expected_tensors`);
+* the safetensors header's ``__metadata__`` (a string → string map) holds
+  ``format_version`` (``"1"``) and ``sideslip.model``: :class:`ModelMetadata` as JSON.
+
+Reading executes no code (no pickle, no TorchScript): safetensors is a JSON header and
+raw little-endian arrays. Every refusal is an :class:`ArtifactError` naming the file.
+
+The network: inputs are the window's ``features`` columns (oldest row first, one row
+per ``dt_s``), each z-scored as ``(x − feature_mean) / feature_std`` in float64 and
+rounded once to float32 (:func:`zscore`); its scalar output ``y`` is the z-scored β,
+so β [rad] = ``y · beta_std + beta_mean`` (:func:`denormalize_beta`).
+
+safetensors is imported when a file is read or written, not with this module, so code
+that only names these types (the estimator's back-end registry) does not need it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, fields
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import ContractError
+from .features import CHANNELS
+
+FORMAT_VERSION: Final = 1
+ARCHITECTURES: Final = ("lstm", "bilstm")
+METADATA_KEY: Final = "sideslip.model"
+"""``__metadata__`` key holding :class:`ModelMetadata` as JSON."""
+VERSION_KEY: Final = "format_version"
+"""``__metadata__`` key holding the format version as a decimal string."""
+VALIDATION_RMSE_KEY: Final = "val_rmse_deg"
+"""``metrics`` key of the validation RMSE of β̂ [deg]; the estimator publishes its square
+(in rad²) as the variance of β̂. Optional; when present a finite number >= 0."""
+DTYPE: Final = np.dtype(np.float32)
+
+
+class ArtifactError(ContractError, ValueError):
+    """A model artifact is malformed or does not match its metadata (message names the file)."""
+
+
+class ArtifactExistsError(ArtifactError, FileExistsError):
+    """The output artifact exists and ``force`` was not given."""
+
+
+def _utc_now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _json_value(value: object, name: str) -> Any:
+    """``value`` as it reads back from strict JSON (tuples → lists, numpy scalars → Python)."""
+
+    def default(o: object) -> object:
+        if isinstance(o, np.generic | np.ndarray):
+            return o.tolist()
+        raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+    try:
+        text = json.dumps(value, allow_nan=False, default=default, sort_keys=True)
+    except (TypeError, ValueError) as err:
+        raise ArtifactError(f"model metadata: {name} must be strict JSON ({err})") from None
+    return json.loads(text)
+
+
+def _is_int(v: object) -> bool:
+    return isinstance(v, int | np.integer) and not isinstance(v, bool)
+
+
+def _is_real(v: object) -> bool:
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
+
+
+@dataclass(frozen=True)
+class ModelMetadata:
+    """Everything needed to rebuild and feed the network, stored in the artifact's header.
+
+    Sequences are stored as tuples of Python floats and the JSON fields as what reads
+    back from JSON, so a written and re-read metadata compares equal. Construction
+    checks every field (:class:`ArtifactError` naming the field).
+    """
+
+    architecture: str
+    """``lstm`` or ``bilstm`` (bidirectional; the head reads both directions' last step)."""
+    hidden_units: int
+    """H: hidden state size per direction."""
+    layers: int
+    """Stacked LSTM layers (layer k > 0 reads H, or 2H for bilstm, inputs)."""
+    features: tuple[str, ...]
+    """Input channels in column order: names from :data:`sideslip_msgs_py.features.CHANNELS`."""
+    window_steps: int
+    """Rows per window (the paper: 100)."""
+    dt_s: float
+    """Sample period the model was trained at [s] (the paper: 0.0025)."""
+    feature_mean: tuple[float, ...]
+    """Per-feature mean, in the feature's unit (m/s, m/s², rad/s, m)."""
+    feature_std: tuple[float, ...]
+    """Per-feature standard deviation (> 0), same units."""
+    beta_mean: float
+    """Mean of the training target β [rad]."""
+    beta_std: float
+    """Standard deviation of β [rad] (> 0)."""
+    training_data_digest: str
+    """Digest identifying the training data (e.g. sha256 over the bags' contents)."""
+    metrics: dict[str, Any] = field(default_factory=dict, hash=False)
+    """Evaluation results (JSON); :data:`VALIDATION_RMSE_KEY` is read by the estimator."""
+    pso: dict[str, Any] | None = field(default=None, hash=False)
+    """PSO result and settings (JSON), or None for a plain LSTM/BiLSTM."""
+    created_utc: str = field(default_factory=_utc_now)
+    """ISO 8601 UTC time of export (default: now, ``YYYY-MM-DDTHH:MM:SSZ``)."""
+    provenance: dict[str, Any] = field(default_factory=dict, hash=False)
+    """Free-form JSON: sideslip version, training command, git commit, seed, ..."""
+    format_version: int = FORMAT_VERSION
+
+    def __post_init__(self) -> None:
+        def fail(what: str) -> ArtifactError:
+            return ArtifactError(f"model metadata: {what}")
+
+        if not _is_int(self.format_version) or self.format_version != FORMAT_VERSION:
+            raise fail(
+                f"unknown format_version {self.format_version!r} (this reader knows "
+                f"{FORMAT_VERSION})"
+            )
+        if self.architecture not in ARCHITECTURES:
+            raise fail(f"unknown architecture {self.architecture!r} (known: {ARCHITECTURES})")
+        for name in ("hidden_units", "layers", "window_steps"):
+            v = getattr(self, name)
+            if not _is_int(v) or v < 1:
+                raise fail(f"{name} must be an integer >= 1, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        if isinstance(self.features, str):
+            raise fail(f"features must be a sequence of channel names, got {self.features!r}")
+        features = tuple(self.features)
+        if not features:
+            raise fail("features is empty")
+        unknown = [f for f in features if f not in CHANNELS]
+        if unknown:
+            raise fail(f"feature(s) {unknown} not in CHANNELS ({', '.join(CHANNELS)})")
+        if len(set(features)) != len(features):
+            raise fail(f"features has duplicates: {list(features)}")
+        object.__setattr__(self, "features", features)
+        for name, positive in (("feature_mean", False), ("feature_std", True)):
+            v = getattr(self, name)
+            try:
+                values = tuple(np.asarray(v, dtype=np.float64).reshape(-1).tolist())
+            except (TypeError, ValueError):
+                raise fail(f"{name} must be a sequence of numbers, got {v!r}") from None
+            if len(values) != len(features):
+                raise fail(f"{name} has {len(values)} values for {len(features)} features")
+            for feat, x in zip(features, values, strict=True):
+                if not math.isfinite(x) or (positive and x <= 0.0):
+                    need = "finite and > 0" if positive else "finite"
+                    raise fail(f"{name} of {feat} must be {need}, got {x!r}")
+            object.__setattr__(self, name, values)
+        for name, positive in (("dt_s", True), ("beta_mean", False), ("beta_std", True)):
+            v = getattr(self, name)
+            if not _is_real(v) or not math.isfinite(v) or (positive and v <= 0):
+                need = "finite and > 0" if positive else "finite"
+                raise fail(f"{name} must be a number, {need}, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        for name in ("training_data_digest", "created_utc"):
+            if not isinstance(getattr(self, name), str):
+                raise fail(f"{name} must be a string, got {getattr(self, name)!r}")
+        for name in ("metrics", "pso", "provenance"):
+            v = getattr(self, name)
+            if v is None and name == "pso":
+                continue
+            if not isinstance(v, dict):
+                raise fail(f"{name} must be a JSON object (dict), got {type(v).__name__}")
+            object.__setattr__(self, name, _json_value(v, name))
+        rmse = self.metrics.get(VALIDATION_RMSE_KEY)
+        if rmse is not None and not (_is_real(rmse) and math.isfinite(rmse) and rmse >= 0):
+            raise fail(f"metrics.{VALIDATION_RMSE_KEY} must be a finite number >= 0, got {rmse!r}")
+
+    @property
+    def directions(self) -> int:
+        """1 for lstm, 2 for bilstm."""
+        return 2 if self.architecture == "bilstm" else 1
+
+    def to_header(self) -> dict[str, str]:
+        """The safetensors ``__metadata__`` map."""
+        text = json.dumps(asdict(self), allow_nan=False, sort_keys=True)
+        return {VERSION_KEY: str(self.format_version), METADATA_KEY: text}
+
+    @classmethod
+    def from_header(cls, header: dict[str, str] | None) -> ModelMetadata:
+        """Parse a ``__metadata__`` map (raises :class:`ArtifactError` without a path)."""
+        if not header or METADATA_KEY not in header or VERSION_KEY not in header:
+            have = sorted(header) if header else []
+            msg = (
+                f"missing metadata: the header needs {VERSION_KEY!r} and {METADATA_KEY!r} "
+                f"(has {have}); not a sideslip model"
+            )
+            raise ArtifactError(msg)
+        if header[VERSION_KEY] != str(FORMAT_VERSION):
+            msg = (
+                f"unknown format version {header[VERSION_KEY]!r} (this reader knows "
+                f"{FORMAT_VERSION}); a newer sideslip wrote it?"
+            )
+            raise ArtifactError(msg)
+        try:
+            data = json.loads(header[METADATA_KEY])
+        except ValueError as err:
+            raise ArtifactError(f"{METADATA_KEY} is not valid JSON ({err})") from None
+        if not isinstance(data, dict):
+            raise ArtifactError(f"{METADATA_KEY} must be a JSON object")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ArtifactError(f"{METADATA_KEY} has unknown key(s) {unknown}")
+        try:
+            return cls(**data)
+        except TypeError as err:  # a required key is missing
+            raise ArtifactError(f"{METADATA_KEY}: {err}") from None
+
+
+def expected_tensors(meta: ModelMetadata) -> dict[str, tuple[int, ...]]:
+    """Tensor name → shape of the network ``meta`` describes, in ``state_dict`` order.
+
+    ``torch.nn.LSTM`` naming under ``lstm.`` (gates stacked i, f, g, o along the first
+    axis, hence 4H), ``_reverse`` for bilstm's backward direction, then the head.
+    """
+    h, d = meta.hidden_units, meta.directions
+    shapes: dict[str, tuple[int, ...]] = {}
+    for k in range(meta.layers):
+        n_in = len(meta.features) if k == 0 else d * h
+        for suffix in ("", "_reverse")[:d]:
+            shapes[f"lstm.weight_ih_l{k}{suffix}"] = (4 * h, n_in)
+            shapes[f"lstm.weight_hh_l{k}{suffix}"] = (4 * h, h)
+            shapes[f"lstm.bias_ih_l{k}{suffix}"] = (4 * h,)
+            shapes[f"lstm.bias_hh_l{k}{suffix}"] = (4 * h,)
+    shapes["head.weight"] = (1, d * h)
+    shapes["head.bias"] = (1,)
+    return shapes
+
+
+def _check_names(where: str, names: set[str], expected: dict[str, tuple[int, ...]]) -> None:
+    missing = [n for n in expected if n not in names]
+    extra = sorted(names - set(expected))
+    if missing or extra:
+        msg = f"{where}: tensors do not match the metadata: missing {missing}, extra {extra}"
+        raise ArtifactError(msg)
+
+
+def _check_tensors(where: str, tensors: dict[str, np.ndarray], meta: ModelMetadata) -> None:
+    expected = expected_tensors(meta)
+    _check_names(where, set(tensors), expected)
+    for name, shape in expected.items():
+        t = tensors[name]
+        if not isinstance(t, np.ndarray):
+            raise ArtifactError(f"{where}: tensor {name} is a {type(t).__name__}, not an ndarray")
+        if t.dtype != DTYPE:
+            raise ArtifactError(f"{where}: tensor {name} has dtype {t.dtype}, expected float32")
+        if t.shape != shape:
+            msg = f"{where}: tensor {name} has shape {t.shape}, expected {shape}"
+            raise ArtifactError(msg)
+        if not np.isfinite(t).all():
+            raise ArtifactError(f"{where}: tensor {name} holds NaN or inf")
+
+
+def _safetensors() -> Any:
+    try:
+        import safetensors
+        import safetensors.numpy
+    except ImportError:
+        msg = "model artifacts need the safetensors package (pip install safetensors)"
+        raise ArtifactError(msg) from None
+    return safetensors
+
+
+def write_artifact(
+    path: str | os.PathLike[str],
+    tensors: dict[str, np.ndarray],
+    meta: ModelMetadata,
+    *,
+    force: bool = False,
+) -> Path:
+    """Write ``tensors`` (float32, named as :func:`expected_tensors`) and ``meta`` to ``path``.
+
+    Refuses an existing ``path`` unless ``force`` (:class:`ArtifactExistsError`), and
+    tensors that do not match ``meta`` before anything is written. The file appears
+    whole or not at all: written next to ``path``, read back, then renamed over it.
+    Returns the path.
+    """
+    path = Path(path)
+    if path.exists() and not force:
+        raise ArtifactExistsError(f"{path}: exists (pass force to replace it)")
+    if path.is_dir():
+        raise ArtifactError(f"{path}: is a directory, not a model file")
+    _check_tensors(str(path), tensors, meta)
+    st = _safetensors()
+    ordered = {name: np.ascontiguousarray(tensors[name]) for name in expected_tensors(meta)}
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        st.numpy.save_file(ordered, tmp, metadata=meta.to_header())
+        read_artifact(tmp)  # never leave a file the reader refuses
+        os.replace(tmp, path)
+    except OSError as err:
+        raise ArtifactError(f"{path}: cannot write ({err.strerror or err})") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def read_artifact(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray], ModelMetadata]:
+    """The tensors (float32 arrays) and metadata of the artifact at ``path``.
+
+    Executes no code from the file. Raises :class:`ArtifactError` naming ``path`` when
+    it is missing, not a safetensors file, lacks sideslip metadata, has an unknown
+    format version or invalid metadata, or its tensors are missing, extra, of the wrong
+    shape or dtype, or hold NaN/inf.
+    """
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        why = "no such file" if not path.exists() else "not a regular file"
+        raise ArtifactError(f"{where}: {why}")
+    st = _safetensors()
+    try:
+        with st.safe_open(path, framework="numpy") as f:
+            header = f.metadata()
+            names = set(f.keys())
+            try:
+                meta = ModelMetadata.from_header(header)
+            except ArtifactError as err:
+                raise ArtifactError(f"{where}: {err}") from None
+            expected = expected_tensors(meta)
+            _check_names(where, names, expected)
+            for name, shape in expected.items():
+                sl = f.get_slice(name)
+                if sl.get_dtype() != "F32":
+                    msg = f"{where}: tensor {name} has dtype {sl.get_dtype()}, expected F32"
+                    raise ArtifactError(msg)
+                if tuple(sl.get_shape()) != shape:
+                    msg = f"{where}: tensor {name} has shape {tuple(sl.get_shape())}, "
+                    raise ArtifactError(msg + f"expected {shape}")
+            tensors = {name: f.get_tensor(name) for name in expected}
+    except OSError as err:
+        raise ArtifactError(f"{where}: cannot read ({err.strerror or err})") from None
+    except ArtifactError:
+        raise
+    except Exception as err:  # safetensors' SafetensorError: a malformed header or body
+        msg = f"{where}: not a safetensors file ({type(err).__name__}: {err})"
+        raise ArtifactError(msg) from None
+    _check_tensors(where, tensors, meta)
+    return tensors, meta
+
+
+def zscore(
+    values: npt.ArrayLike,
+    mean: npt.ArrayLike,
+    std: npt.ArrayLike,
+) -> npt.NDArray[np.float32]:
+    """The network input ``(values − mean) / std``: computed in float64, rounded once to
+    float32. ``mean``/``std`` broadcast over the last axis (one per feature)."""
+    x = np.asarray(values, dtype=np.float64)
+    return ((x - np.asarray(mean, np.float64)) / np.asarray(std, np.float64)).astype(np.float32)
+
+
+def denormalize_beta(y: float, meta: ModelMetadata) -> float:
+    """β [rad] from the network's z-scored output ``y`` (float64 arithmetic)."""
+    return float(y) * meta.beta_std + meta.beta_mean
+
+
+__all__ = [
+    "ARCHITECTURES",
+    "FORMAT_VERSION",
+    "METADATA_KEY",
+    "VALIDATION_RMSE_KEY",
+    "VERSION_KEY",
+    "ArtifactError",
+    "ArtifactExistsError",
+    "ModelMetadata",
+    "denormalize_beta",
+    "expected_tensors",
+    "read_artifact",
+    "write_artifact",
+    "zscore",
+]

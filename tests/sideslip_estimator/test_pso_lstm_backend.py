@@ -1,0 +1,228 @@
+"""The pso_lstm back-end: the same β̂ as the trainer's network, bit for bit, from the artifact
+alone; refusals at start-up; the registry does not import torch."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from safetensors.numpy import save_file
+
+from sideslip_estimator.backends import BACKENDS, BackendError, create_backend
+from sideslip_estimator.backends.pso_lstm import DEFAULT_SIGMA_RAD, SHIPPED_MODEL, PsoLstmBackend
+from sideslip_msgs_py.artifact import (
+    METADATA_KEY,
+    ModelMetadata,
+    denormalize_beta,
+    read_artifact,
+    zscore,
+)
+from sideslip_msgs_py.features import FEATURE_SETS, channel_indices
+from sideslip_training.export import export_model, load_model
+from sideslip_training.model import ModelConfig, SideslipNet
+
+torch.set_num_threads(1)
+WINDOW = 100
+STEP_NS = 2_500_000
+
+
+def write_model(
+    path: Path,
+    architecture: str = "lstm",
+    feature_set: str = "paper",
+    *,
+    hidden: int = 16,
+    layers: int = 1,
+    window: int = WINDOW,
+    metrics: dict | None = None,
+    seed: int = 0,
+) -> Path:
+    features = FEATURE_SETS[feature_set]
+    torch.manual_seed(seed)
+    net = SideslipNet(ModelConfig(architecture, len(features), hidden, layers))
+    # Statistics of the synthetic rows below, so the network sees inputs of order 1.
+    stats = {
+        "x_v_mps": (20.0, 2.0),
+        "y_v_mps": (0.0, 0.5),
+        "x_a_mps2": (0.0, 0.3),
+        "y_a_mps2": (0.0, 4.0),
+        "yaw_rate_radps": (0.0, 0.2),
+        "stl_m": (0.0, 0.02),
+    }
+    meta = ModelMetadata(
+        architecture=architecture,
+        hidden_units=hidden,
+        layers=layers,
+        features=features,
+        window_steps=window,
+        dt_s=0.0025,
+        feature_mean=tuple(stats[f][0] for f in features),
+        feature_std=tuple(stats[f][1] for f in features),
+        beta_mean=0.002,
+        beta_std=0.03,
+        training_data_digest="sha256:0123456789abcdef",
+        metrics={"val_rmse_deg": 0.4} if metrics is None else metrics,
+    )
+    return export_model(path, net, meta)
+
+
+def make_rows(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A read-only window like SampleWindow.rows(): CHANNELS columns, oldest first."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * STEP_NS * 1e-9
+    rows = np.stack(
+        [
+            20.0 + rng.normal(0, 0.3, n),
+            0.5 * np.sin(3.0 * t) + rng.normal(0, 0.3, n),
+            rng.normal(0, 0.3, n),
+            4.0 * np.sin(3.0 * t + 0.2),
+            0.2 * np.sin(3.0 * t + 0.2),
+            0.02 * np.sin(3.0 * t),
+        ],
+        axis=1,
+    )
+    rows.flags.writeable = False
+    return rows, np.arange(n, dtype=np.int64) * STEP_NS
+
+
+def reference_beta(path: Path, rows: np.ndarray) -> float:
+    """What the trainer's network gives on the newest window (batch of one)."""
+    net, meta = load_model(path)
+    x = zscore(rows[-meta.window_steps :, channel_indices(meta.features)], *_stats(meta))
+    with torch.inference_mode():
+        y = net(torch.from_numpy(x)[None])
+    return denormalize_beta(y.item(), meta)
+
+
+def _stats(meta: ModelMetadata) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(meta.feature_mean), np.asarray(meta.feature_std)
+
+
+# --- same output as the network it was exported from ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("architecture", "feature_set", "layers"),
+    [("lstm", "paper", 1), ("lstm", "measurable", 2), ("bilstm", "measurable", 1)],
+)
+def test_estimate_equals_the_trained_network_bit_for_bit(
+    tmp_path: Path, architecture: str, feature_set: str, layers: int
+) -> None:
+    path = write_model(tmp_path / "m.safetensors", architecture, feature_set, layers=layers)
+    backend = create_backend("pso_lstm", {"model_file": str(path)}, WINDOW)
+    rows, stamps = make_rows(WINDOW + 40, seed=1)
+    for end in (WINDOW, WINDOW + 17, WINDOW + 40):  # successive windows reuse the buffers
+        est = backend.update(rows[end - WINDOW : end], stamps[end - WINDOW : end])
+        assert est is not None
+        assert est.beta_rad == reference_beta(path, rows[:end])
+        assert math.isfinite(est.beta_rad) and est.beta_rad != 0.0
+
+
+def test_no_estimate_until_the_window_is_full(tmp_path: Path) -> None:
+    backend = PsoLstmBackend({"model_file": str(write_model(tmp_path / "m.safetensors"))}, WINDOW)
+    rows, stamps = make_rows(WINDOW - 1)
+    assert backend.update(rows, stamps) is None
+    assert backend.update(rows[:1], stamps[:1]) is None
+    backend.reset()
+
+
+def test_variance_is_the_validation_rmse_squared_else_the_stated_default(tmp_path: Path) -> None:
+    rows, stamps = make_rows(WINDOW)
+    with_rmse = write_model(tmp_path / "a.safetensors", metrics={"val_rmse_deg": 0.4})
+    est = PsoLstmBackend({"model_file": str(with_rmse)}, WINDOW).update(rows, stamps)
+    assert est is not None and est.variance_rad2 == pytest.approx(math.radians(0.4) ** 2)
+    without = write_model(tmp_path / "b.safetensors", metrics={})
+    est = PsoLstmBackend({"model_file": str(without)}, WINDOW).update(rows, stamps)
+    assert est is not None and est.variance_rad2 == DEFAULT_SIGMA_RAD**2
+
+
+def test_model_id_names_the_file_architecture_and_data(tmp_path: Path) -> None:
+    path = write_model(tmp_path / "paper_bi.safetensors", "bilstm", hidden=8, layers=2)
+    backend = PsoLstmBackend({"model_file": str(path), "threads": 1}, WINDOW)
+    assert backend.model_id.startswith("pso_lstm(paper_bi.safetensors: bilstm 2x8")
+    assert "data sha256:01234" in backend.model_id
+    assert backend.dt_s == 0.0025
+    assert BACKENDS["pso_lstm"] is PsoLstmBackend
+
+
+# --- refusals at start-up -----------------------------------------------------------------------
+
+
+def test_a_window_other_than_the_models_is_refused(tmp_path: Path) -> None:
+    path = write_model(tmp_path / "m.safetensors", window=50)
+    with pytest.raises(BackendError, match=r"reads 50-step windows .* window_steps is 100"):
+        PsoLstmBackend({"model_file": str(path)}, WINDOW)
+
+
+def test_a_missing_file_is_refused_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "absent.safetensors"
+    with pytest.raises(BackendError, match=r"pso_lstm\.model_file: .*absent\.safetensors: no such"):
+        PsoLstmBackend({"model_file": str(path)}, WINDOW)
+
+
+def test_a_feature_the_window_lacks_is_refused(tmp_path: Path) -> None:
+    good = write_model(tmp_path / "m.safetensors", feature_set="measurable")
+    tensors, meta = read_artifact(good)
+    header = meta.to_header()
+    data = json.loads(header[METADATA_KEY])
+    data["features"][0] = "wheel_speed_mps"
+    header[METADATA_KEY] = json.dumps(data)
+    bad = tmp_path / "bad.safetensors"
+    save_file(tensors, bad, metadata=header)
+    with pytest.raises(BackendError, match=r"bad\.safetensors: .*\['wheel_speed_mps'\] not in"):
+        PsoLstmBackend({"model_file": str(bad)}, WINDOW)
+
+
+def test_a_file_that_is_not_a_model_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "notes.safetensors"
+    path.write_text("not a model")
+    with pytest.raises(BackendError, match=r"notes\.safetensors: not a safetensors file"):
+        PsoLstmBackend({"model_file": str(path)}, WINDOW)
+
+
+def test_the_default_is_the_shipped_model_or_a_clear_error() -> None:
+    shipped = resources.files("sideslip_estimator").joinpath(SHIPPED_MODEL)
+    if shipped.is_file():
+        _, meta = read_artifact(Path(str(shipped)))
+        backend = PsoLstmBackend({}, meta.window_steps)
+        assert "(shipped)" in backend.model_id
+    else:
+        with pytest.raises(BackendError, match=r"no model is shipped yet.*sideslip-train"):
+            PsoLstmBackend({}, WINDOW)
+
+
+@pytest.mark.parametrize(
+    ("values", "match"),
+    [
+        ({"threads": 0}, r"pso_lstm\.threads must be >= 1"),
+        ({"threads": 1.5}, r"pso_lstm\.threads must be a int"),
+        ({"model_file": 3}, r"pso_lstm\.model_file must be a string"),
+        ({"model": "x"}, r"unknown parameter"),
+    ],
+)
+def test_invalid_parameters_are_refused(values: dict, match: str) -> None:
+    with pytest.raises(BackendError, match=match):
+        PsoLstmBackend(values, WINDOW)
+
+
+# --- import weight --------------------------------------------------------------------------------
+
+
+def test_importing_the_backends_does_not_import_torch() -> None:
+    code = (
+        "import sys\n"
+        "import sideslip_estimator.backends as b\n"
+        "assert 'pso_lstm' in b.BACKENDS\n"
+        "print(sorted(m for m in ('torch', 'safetensors') if m in sys.modules))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert out.stdout.strip() == "[]"

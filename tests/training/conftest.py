@@ -1,0 +1,87 @@
+"""Fixtures for the training tests: small real bags (simulated, or written from arrays)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sideslip_msgs_py.bag import write_bag
+from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
+
+STEP_NS = 2_500_000  # 400 Hz
+
+
+def _make_arrays(
+    n: int,
+    *,
+    truth: bool = True,
+    seed: int = 0,
+    t0_ns: int = 0,
+    v_x_mps: float = 20.0,
+    stamps_ns: np.ndarray | None = None,
+) -> SampleArrays:
+    """A smooth sine-steer-like signal (not physics) plus noise, at 400 Hz by default."""
+    rng = np.random.default_rng(seed)
+    stamp = (
+        t0_ns + np.arange(n, dtype=np.int64) * STEP_NS
+        if stamps_ns is None
+        else np.asarray(stamps_ns, np.int64)
+    )
+    t = (stamp - stamp[0]) * 1e-9
+    v_x = v_x_mps + 0.5 * np.sin(0.3 * t)
+    v_y = 0.8 * np.sin(2.0 * math.pi * 0.5 * t + seed)
+    r = 0.3 * np.sin(2.0 * math.pi * 0.5 * t + 0.2 + seed)
+    cols = {
+        "x_v_mps": v_x + rng.normal(0, 0.28, n),
+        "y_v_mps": v_y + rng.normal(0, 0.28, n),
+        "x_a_mps2": rng.normal(0, 0.1, n),
+        "y_a_mps2": v_x * r + rng.normal(0, 0.1, n),
+        "yaw_rate_radps": r + rng.normal(0, 0.0035, n),
+        "stl_m": 0.02 * np.sin(2.0 * math.pi * 0.5 * t + seed),
+        "stl_rate_mps": 0.02 * math.pi * np.cos(2.0 * math.pi * 0.5 * t + seed),
+    }
+    if truth:
+        cols |= {"truth_v_x_mps": v_x, "truth_v_y_mps": v_y, "truth_yaw_rate_radps": r}
+    return SampleArrays(stamp_ns=stamp, **cols)
+
+
+@pytest.fixture
+def make_arrays() -> Callable[..., SampleArrays]:
+    """Factory: ``make_arrays(n, truth=True, seed=0, t0_ns=0, v_x_mps=20.0, stamps_ns=None)``."""
+    return _make_arrays
+
+
+@pytest.fixture
+def write_arrays(tmp_path: Path) -> Callable[..., Path]:
+    """Factory: ``write_arrays(name, arrays, folder=tmp_path)`` → a rosbag2 directory."""
+
+    def write(name: str, arrays: SampleArrays, folder: Path | None = None) -> Path:
+        out = (folder or tmp_path) / name
+        out.parent.mkdir(parents=True, exist_ok=True)
+        return write_bag(
+            out, arrays, sigma=SensorNoiseSigma.paper(), run_metadata={"name": name}, compress=False
+        )
+
+    return write
+
+
+@pytest.fixture(scope="session")
+def sim_bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A ``sideslip-generate``-style folder (index.json + 4 bags of 1 s, 400 samples each)."""
+    from sideslip_sim.generate import generate
+    from sideslip_sim.maneuvers import Maneuver
+    from sideslip_sim.vehicle import load_vehicle
+
+    out = tmp_path_factory.mktemp("sim_bags")
+    maneuvers = [
+        Maneuver("dlc_70", "double_lane_change", 1.0, 70.0, 0.0),
+        Maneuver("sine_60", "sine_steer", 1.0, 60.0, 0.0, seed=1),
+        Maneuver("sine_80", "sine_steer", 1.0, 80.0, 0.0, seed=2),
+        Maneuver("straight_50", "straight", 1.0, 50.0, 0.0),
+    ]
+    generate(load_vehicle("paper_sedan"), maneuvers, out, preset_name="test", progress=False)
+    return out

@@ -1,0 +1,241 @@
+"""Evaluation in the paper's layout: MAE, ME, RMSE, R² in degrees per scenario and model,
+β traces (Figs. 7–10, 15–18) and error PDFs (Figs. 11–14), with the kinematic baseline
+atan2(Y_v, X_v), raw and smoothed, beside every learned model.
+
+Every estimator is scored on the same samples: those with a full window behind them
+(sample index ≥ window − 1 of each run), so the baselines are not credited with the
+first 250 ms that a network cannot see.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import torch
+
+from sideslip_msgs_py.artifact import ModelMetadata
+from sideslip_msgs_py.features import channel_indices
+
+from .dataset import Run
+from .model import SideslipNet
+
+FloatArray = npt.NDArray[np.float64]
+PREDICT_BATCH = 4096
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Errors of β̂ − β in degrees (R² dimensionless), over ``n`` samples."""
+
+    mae: float
+    me: float
+    rmse: float
+    r2: float
+    n: int
+
+
+def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:
+    est, ref = np.degrees(estimate_rad), np.degrees(reference_rad)
+    err = est - ref
+    ss_tot = float(np.sum((ref - ref.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(err**2)) / ss_tot if ss_tot > 0 else math.nan
+    return Metrics(
+        mae=float(np.mean(np.abs(err))),
+        me=float(np.mean(err)),
+        rmse=float(np.sqrt(np.mean(err**2))),
+        r2=r2,
+        n=int(err.size),
+    )
+
+
+@dataclass(frozen=True)
+class Trace:
+    """One estimator on one run: β̂ and β [rad] at times t [s] from the run's start."""
+
+    scenario: str
+    estimator: str
+    t_s: FloatArray
+    estimate_rad: FloatArray
+    reference_rad: FloatArray
+
+    @property
+    def metrics(self) -> Metrics:
+        return metrics_deg(self.estimate_rad, self.reference_rad)
+
+
+def model_label(meta: ModelMetadata) -> str:
+    """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (+ feature set when not paper)."""
+    arch = "LSTM" if meta.architecture == "lstm" else "BiLSTM"
+    return f"PSO-{arch}" if meta.pso else arch
+
+
+def predict_run(model: SideslipNet, meta: ModelMetadata, run: Run) -> FloatArray:
+    """β̂ [rad] for every sample with a full window, i.e. samples[window-1:]."""
+    s = run.samples
+    channel_indices(meta.features)  # refuses a feature that is not a contract channel
+    x = np.stack([getattr(s, c) for c in meta.features], axis=1)
+    x = (x - np.asarray(meta.feature_mean)) / np.asarray(meta.feature_std)
+    w = meta.window_steps
+    windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (N, F, w)
+    out = np.empty(windows.shape[0])
+    model.eval()
+    with torch.inference_mode():
+        for start in range(0, windows.shape[0], PREDICT_BATCH):
+            chunk = np.ascontiguousarray(
+                windows[start : start + PREDICT_BATCH].transpose(0, 2, 1), dtype=np.float32
+            )
+            out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
+    return out * meta.beta_std + meta.beta_mean
+
+
+def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:
+    """atan2 of the causal moving average of (X_v, Y_v) over ``smoothing_steps``, for
+    samples[window_steps-1:] (the same samples the networks are scored on)."""
+    s = run.samples
+    kernel = np.ones(smoothing_steps) / smoothing_steps
+
+    def causal_mean(v: FloatArray) -> FloatArray:
+        padded = np.concatenate([np.full(smoothing_steps - 1, v[0]), v])
+        return np.convolve(padded, kernel, mode="valid")
+
+    beta = np.arctan2(causal_mean(s.y_v_mps), causal_mean(s.x_v_mps))
+    return beta[window_steps - 1 :]
+
+
+def evaluate_runs(
+    runs: Sequence[Run],
+    models: Sequence[tuple[str, SideslipNet, ModelMetadata]],
+    *,
+    window_steps: int,
+    smoothing_steps: int = 20,
+    dt_s: float = 0.0025,
+) -> list[Trace]:
+    """Traces of every estimator on every run: baselines first, then the models."""
+    traces = []
+    for run in runs:
+        ref = run.samples.beta_rad()[window_steps - 1 :]
+        t = np.arange(ref.size) * dt_s + (window_steps - 1) * dt_s
+        estimators = [
+            ("Kinematic (raw)", kinematic(run, 1, window_steps)),
+            (
+                f"Kinematic ({smoothing_steps}-step mean)",
+                kinematic(run, smoothing_steps, window_steps),
+            ),
+        ]
+        for name, model, meta in models:
+            if meta.window_steps != window_steps:
+                raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
+            estimators.append((name, predict_run(model, meta, run)))
+        for name, est in estimators:
+            traces.append(Trace(run.name, name, t, est, ref))
+    return traces
+
+
+# --- tables ----------------------------------------------------------------------------
+
+
+def _rows(traces: Sequence[Trace]) -> list[tuple[str, str, Metrics]]:
+    return [(t.scenario, t.estimator, t.metrics) for t in traces]
+
+
+def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
+    """Table 5/6 layout: one block per scenario, one row per estimator, plus the mean."""
+    out = io.StringIO()
+    if title:
+        out.write(f"{title}\n\n")
+    out.write("| Scenario | Model | MAE [deg] | ME [deg] | RMSE [deg] | R² |\n")
+    out.write("|---|---|---|---|---|---|\n")
+    last = None
+    for scen, name, m in _rows(traces):
+        label = scen if scen != last else ""
+        last = scen
+        out.write(f"| {label} | {name} | {m.mae:.3f} | {m.me:+.3f} | {m.rmse:.3f} | {m.r2:.3f} |\n")
+    for name in dict.fromkeys(t.estimator for t in traces):
+        ms = [t.metrics for t in traces if t.estimator == name]
+        out.write(
+            f"| mean | {name} | {np.mean([m.mae for m in ms]):.3f} | "
+            f"{np.mean([m.me for m in ms]):+.3f} | {np.mean([m.rmse for m in ms]):.3f} | "
+            f"{np.mean([m.r2 for m in ms]):.3f} |\n"
+        )
+    return out.getvalue()
+
+
+def table_csv(traces: Sequence[Trace]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out)
+    writer.writerow(["scenario", "model", "mae_deg", "me_deg", "rmse_deg", "r2", "samples"])
+    for scen, name, m in _rows(traces):
+        writer.writerow(
+            [scen, name, f"{m.mae:.6f}", f"{m.me:.6f}", f"{m.rmse:.6f}", f"{m.r2:.6f}", m.n]
+        )
+    return out.getvalue()
+
+
+# --- figures ---------------------------------------------------------------------------
+
+
+def plot_traces(traces: Sequence[Trace], out_dir: Path, prefix: str = "") -> list[Path]:
+    """One figure per scenario: β reference and every estimate [deg] over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for scen in dict.fromkeys(t.scenario for t in traces):
+        mine = [t for t in traces if t.scenario == scen]
+        fig, ax = plt.subplots(figsize=(9, 3.6))
+        ax.plot(mine[0].t_s, np.degrees(mine[0].reference_rad), "k", lw=2, label="Reference")
+        for t in mine:
+            ax.plot(t.t_s, np.degrees(t.estimate_rad), lw=0.9, label=t.estimator)
+        ax.set(xlabel="t [s]", ylabel="β [deg]", title=f"{scen}: sideslip angle")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=3)
+        fig.tight_layout()
+        path = out_dir / f"{prefix}trace_{scen}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def plot_error_pdfs(traces: Sequence[Trace], out_dir: Path, prefix: str = "") -> list[Path]:
+    """One figure per scenario: Gaussian fit of each estimator's error with mean ± std."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for scen in dict.fromkeys(t.scenario for t in traces):
+        mine = [t for t in traces if t.scenario == scen]
+        fig, ax = plt.subplots(figsize=(7, 3.6))
+        for i, t in enumerate(mine):
+            err = np.degrees(t.estimate_rad - t.reference_rad)
+            mu, sd = float(err.mean()), float(err.std())
+            xs = np.linspace(mu - 4 * sd, mu + 4 * sd, 200) if sd > 0 else np.array([mu])
+            pdf = (
+                np.exp(-0.5 * ((xs - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+                if sd > 0
+                else xs * 0 + 1
+            )
+            (line,) = ax.plot(xs, pdf, lw=1.2, label=f"{t.estimator}: {mu:+.3f} ± {sd:.3f}")
+            peak = float(pdf.max())
+            ax.plot([mu], [peak], "o", color=line.get_color())
+            ax.hlines(peak * (1 - 0.03 * i), mu - sd, mu + sd, color=line.get_color())
+        ax.set(xlabel="β̂ − β [deg]", ylabel="density", title=f"{scen}: error PDF")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = out_dir / f"{prefix}error_pdf_{scen}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths

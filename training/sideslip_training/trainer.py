@@ -1,0 +1,172 @@
+"""One training of one network: Adam on the MSE of normalised β, early stopping on
+validation MAE, the best epoch's weights kept.
+
+Reads top to bottom: config → data on the device → epoch loop → result. Everything is
+seeded (weights, shuffling); on CPU two runs with the same seed give the same weights
+bit for bit (tested), on CUDA the LSTM kernels are not deterministic.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import torch
+from torch import nn
+
+from .dataset import Normalizer, WindowIndex
+from .model import ModelConfig, SideslipNet
+
+VAL_BATCH = 8192  # windows per validation forward pass (memory, not accuracy)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """What one training needs besides the data. Units: learning rate per Adam step."""
+
+    architecture: str = "lstm"  # lstm | bilstm
+    hidden_units: int = 64
+    layers: int = 1
+    learning_rate: float = 1e-3
+    max_epochs: int = 100
+    patience: int = 10
+    batch_size: int = 512
+    seed: int = 0
+    device: str = "auto"  # auto | cpu | cuda
+
+    def __post_init__(self) -> None:
+        if self.architecture not in ("lstm", "bilstm"):
+            raise ValueError(f"architecture must be lstm or bilstm, got {self.architecture!r}")
+        if self.hidden_units < 1 or self.layers < 1:
+            raise ValueError("hidden_units and layers must be >= 1")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"learning_rate must be > 0, got {self.learning_rate!r}")
+        if self.max_epochs < 1 or self.patience < 1 or self.batch_size < 1:
+            raise ValueError("max_epochs, patience and batch_size must be >= 1")
+
+
+@dataclass(frozen=True)
+class EpochRecord:
+    epoch: int
+    train_loss: float  # mean MSE of normalised β over the epoch's batches
+    val_mae_deg: float
+    seconds: float
+    windows_per_s: float
+
+
+@dataclass
+class TrainResult:
+    model: SideslipNet  # the best epoch's weights, on the CPU, in eval mode
+    best_epoch: int
+    best_val_mae_deg: float
+    history: list[EpochRecord] = field(default_factory=list)
+    seconds: float = 0.0
+    device: str = "cpu"
+    stopped_early: bool = False
+
+    def summary(self) -> dict[str, object]:
+        return {
+            "best_epoch": self.best_epoch,
+            "best_val_mae_deg": self.best_val_mae_deg,
+            "epochs_run": len(self.history),
+            "stopped_early": self.stopped_early,
+            "seconds": self.seconds,
+            "device": self.device,
+            "mean_windows_per_s": (
+                sum(r.windows_per_s for r in self.history) / len(self.history)
+                if self.history
+                else 0.0
+            ),
+            "history": [asdict(r) for r in self.history],
+        }
+
+
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device cuda requested but torch sees no CUDA device")
+    return torch.device(name)
+
+
+def mae_deg(model: nn.Module, data, normalizer: Normalizer, device: torch.device, n: int) -> float:
+    """Validation MAE of β in degrees over all ``n`` windows of ``data``."""
+    model.eval()
+    total = 0.0
+    with torch.inference_mode():
+        for start in range(0, n, VAL_BATCH):
+            idx = torch.arange(start, min(start + VAL_BATCH, n), device=device)
+            x, y = data.batch(idx)
+            total += float((model(x) - y).abs().sum())
+    return math.degrees(total / max(n, 1) * normalizer.beta_std)
+
+
+def train_model(
+    cfg: TrainConfig,
+    train: WindowIndex,
+    val: WindowIndex,
+    normalizer: Normalizer,
+    *,
+    on_epoch: Callable[[EpochRecord], None] | None = None,
+) -> TrainResult:
+    """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE."""
+    device = pick_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    model = SideslipNet(
+        ModelConfig(cfg.architecture, len(normalizer.features), cfg.hidden_units, cfg.layers)
+    ).to(device)
+    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
+    loss_fn = nn.MSELoss()
+    train_t, val_t = train.to_torch(device), val.to_torch(device)
+    n_train, n_val = len(train.ends), len(val.ends)
+    if n_train == 0 or n_val == 0:
+        raise ValueError(f"no windows to train on ({n_train}) or validate on ({n_val})")
+    shuffle = torch.Generator(device="cpu").manual_seed(cfg.seed)
+
+    result = TrainResult(model=model, best_epoch=0, best_val_mae_deg=math.inf, device=str(device))
+    best_state = copy.deepcopy(model.state_dict())
+    since_best = 0
+    started = time.perf_counter()
+    for epoch in range(1, cfg.max_epochs + 1):
+        t0 = time.perf_counter()
+        model.train()
+        order = torch.randperm(n_train, generator=shuffle).to(device)
+        loss_sum, batches = 0.0, 0
+        for start in range(0, n_train, cfg.batch_size):
+            x, y = train_t.batch(order[start : start + cfg.batch_size])
+            optimiser.zero_grad(set_to_none=True)
+            loss = loss_fn(model(x), y)
+            loss.backward()
+            optimiser.step()
+            loss_sum += float(loss.detach())
+            batches += 1
+        train_seconds = time.perf_counter() - t0
+        val_mae = mae_deg(model, val_t, normalizer, device, n_val)
+        record = EpochRecord(
+            epoch,
+            loss_sum / batches,
+            val_mae,
+            time.perf_counter() - t0,
+            n_train / train_seconds,
+        )
+        result.history.append(record)
+        if on_epoch is not None:
+            on_epoch(record)
+        if not math.isfinite(record.train_loss):
+            break  # diverged: the best earlier epoch (if any) stands
+        if val_mae < result.best_val_mae_deg:
+            result.best_val_mae_deg, result.best_epoch = val_mae, epoch
+            best_state = copy.deepcopy(model.state_dict())
+            since_best = 0
+        else:
+            since_best += 1
+            if since_best >= cfg.patience:
+                result.stopped_early = True
+                break
+    model.load_state_dict(best_state)
+    result.model = model.cpu().eval()
+    result.seconds = time.perf_counter() - started
+    return result
