@@ -114,6 +114,11 @@ def bench_update(path: Path, calls: int, warmup: int, threads: int) -> dict[str,
     }
 
 
+SHIPPED_DIR = (
+    Path(__file__).resolve().parents[1] / "sideslip_estimator/sideslip_estimator/data/models"
+)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         description="p50/p99 of one pso_lstm update() (100-step window) per network size.",
@@ -122,6 +127,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--warmup", type=int, default=500, help="untimed calls first (500)")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (1)")
     p.add_argument("--json", type=Path, metavar="PATH", help="also write the JSON here")
+    p.add_argument(
+        "--model",
+        type=Path,
+        nargs="*",
+        default=[
+            SHIPPED_DIR / "pso_lstm_paper.safetensors",
+            SHIPPED_DIR / "pso_lstm_measurable.safetensors",
+        ],
+        help="exported models to time as well (default: the shipped ones)",
+    )
     args = p.parse_args(argv)
 
     import torch  # for the version only; the back-end imports it itself
@@ -133,6 +148,11 @@ def main(argv: list[str] | None = None) -> int:
             path = random_artifact(file, architecture, hidden)
             key = f"{architecture}_h{hidden}"
             results[key] = bench_update(path, args.calls, args.warmup, args.threads)
+            print(f"{key}: {results[key]}", file=sys.stderr)
+    for model in args.model:
+        if model.exists():
+            key = f"shipped:{model.name}"
+            results[key] = bench_update(model, args.calls, args.warmup, args.threads)
             print(f"{key}: {results[key]}", file=sys.stderr)
     report = {
         "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),

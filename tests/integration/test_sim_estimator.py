@@ -42,7 +42,10 @@ def truth_by_stamp(inbox) -> dict[int, float]:
     return {stamp_ns(r.msg): math.atan2(r.msg.twist.linear.y, r.msg.twist.linear.x) for r in inbox}
 
 
-@pytest.mark.parametrize(("backend", "tolerance_deg"), [("kinematic", 0.5), ("single_track", 0.5)])
+@pytest.mark.parametrize(
+    ("backend", "tolerance_deg"),
+    [("kinematic", 0.5), ("single_track", 0.5), ("pso_lstm", 0.5)],  # pso_lstm: shipped model
+)
 def test_sideslip_follows_ground_truth_on_a_noise_free_run(spawn, probe, backend, tolerance_deg):
     estimator = spawn("sideslip-estimator", "--ros-args", "-p", f"backend:={backend}")
     truth = probe.subscribe(

@@ -63,11 +63,9 @@ def test_unknown_backend_is_an_error_listing_the_known_ones() -> None:
         create_backend("transformer", {}, 100)
 
 
-def test_every_model_free_backend_builds_from_its_declared_defaults() -> None:
-    # pso_lstm's default is the shipped model: test_pso_lstm_backend.py covers it.
+def test_every_backend_builds_from_its_declared_defaults() -> None:
+    # pso_lstm's default is the shipped PSO-LSTM, so this also proves it is shipped.
     for name, factory in BACKENDS.items():
-        if name == "pso_lstm":
-            continue
         values = {p.name: p.default for p in factory.parameters}
         backend = create_backend(name, values, 100)
         assert backend.name == name and backend.model_id.startswith(name)

@@ -17,7 +17,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from sideslip_msgs_py import qos, topics
-from sideslip_msgs_py.bag import RUN_METADATA_KEY, read_bag, write_bag
+from sideslip_msgs_py.bag import RUN_METADATA_KEY, open_raw_bag, read_bag, write_bag
 from sideslip_msgs_py.errors import (
     BagError,
     BagExistsError,
@@ -192,6 +192,47 @@ def test_bag_cut_inside_its_summary_loses_no_sample(
     assert contents.truncated
     assert contents.samples == arrays
     assert contents.run_metadata == run_metadata  # still in metadata.yaml
+
+
+def test_damaged_chunk_behind_an_intact_summary_yields_the_chunks_before_it(
+    tmp_path: Path, make_arrays: MakeArrays
+) -> None:
+    from mcap.reader import make_reader
+
+    arrays = make_arrays(4000)  # several 1-MiB chunks
+    path = write_bag(tmp_path / "b", arrays, sigma=SensorNoiseSigma.paper(), run_metadata={"a": 1})
+    mcap = path / "b.mcap"
+    with mcap.open("rb") as stream:
+        second = make_reader(stream).get_summary().chunk_indexes[1]
+    data = bytearray(mcap.read_bytes())
+    start = second.chunk_start_offset + 53  # the second chunk's zstd frame, from its magic
+    data[start : start + 400] = bytes(b ^ 0xA5 for b in data[start : start + 400])
+    mcap.write_bytes(bytes(data))
+
+    contents = read_bag(path)
+    assert contents.truncated
+    assert any("unreadable after" in note for note in contents.notes)
+    n = len(contents.samples)
+    assert 0 < n < len(arrays)
+    assert contents.samples == _head(arrays, n)
+    assert contents.run_metadata == {"a": 1}
+
+
+def test_raw_reader_gives_topics_with_qos_and_repeatable_log_time_ordered_passes(
+    small_bag: tuple[Path, SampleArrays],
+) -> None:
+    path, arrays = small_bag
+    raw = open_raw_bag(path)
+    assert (raw.truncated, raw.notes) == (False, ())
+    assert set(raw.topics) == set(topics.SAMPLE_TOPICS)
+    for name, topic in raw.topics.items():
+        assert (topic.msgtype, topic.count) == (topics.TOPIC_TYPES[name], len(arrays))
+        assert topic.offered_qos == (qos.qos_for(name).to_rosbags(),)
+    assert (raw.start_ns, raw.end_ns) == (arrays.stamp_ns[0], arrays.stamp_ns[-1])
+    imu = list(raw.messages([topics.IMU]))
+    assert [m.log_time_ns for m in imu] == arrays.stamp_ns.tolist()
+    assert list(raw.messages([topics.IMU])) == imu
+    assert len(list(raw.messages())) == len(arrays) * len(topics.SAMPLE_TOPICS)
 
 
 def test_existing_output_is_refused_without_force_and_replaced_with_it(

@@ -116,7 +116,8 @@ def particle_fitness(params: dict[str, Any], ctx: ParticleContext) -> float:
     return result.best_val_mae_deg
 
 
-def _prepare_out(args: argparse.Namespace) -> Path:
+def _check_out(args: argparse.Namespace) -> Path:
+    """Refuse outputs that exist without --force; return the run folder (not made yet)."""
     out: Path = args.out
     if out.suffix != ".safetensors":
         raise CliError(f"--out {out}: must end in .safetensors")
@@ -126,12 +127,16 @@ def _prepare_out(args: argparse.Namespace) -> Path:
     if args.resume:
         if not (run_dir / "pso_state.json").exists():
             raise CliError(f"--resume: no PSO state in {run_dir} (pso_state.json)")
-    elif run_dir.exists():
-        if not args.force:
-            raise CliError(f"run folder {run_dir} exists; pass --force or --resume")
+    elif run_dir.exists() and not args.force:
+        raise CliError(f"run folder {run_dir} exists; pass --force or --resume")
+    return run_dir
+
+
+def _make_run_dir(run_dir: Path, resume: bool) -> None:
+    """Made only once the data has been accepted: a refused run leaves nothing behind."""
+    if run_dir.exists() and not resume:
         shutil.rmtree(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    return run_dir
 
 
 def _check_features(runs: Sequence[Run], features: Sequence[str]) -> None:
@@ -185,8 +190,9 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         features = feature_set(args.features)
         if args.workers < 1:
             raise CliError(f"--workers must be >= 1, got {args.workers}")
-        run_dir = _prepare_out(args)
+        run_dir = _check_out(args)
         runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, features, log)
+        _make_run_dir(run_dir, args.resume)
     except (CliError, DatasetError, FeatureError, ValueError) as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -192,9 +192,17 @@ def plot_traces(traces: Sequence[Trace], out_dir: Path, prefix: str = "") -> lis
     for scen in dict.fromkeys(t.scenario for t in traces):
         mine = [t for t in traces if t.scenario == scen]
         fig, ax = plt.subplots(figsize=(9, 3.6))
-        ax.plot(mine[0].t_s, np.degrees(mine[0].reference_rad), "k", lw=2, label="Reference")
         for t in mine:
-            ax.plot(t.t_s, np.degrees(t.estimate_rad), lw=0.9, label=t.estimator)
+            # The raw baseline is noise around the reference: drawn faint, behind.
+            faint = "raw" in t.estimator
+            ax.plot(
+                t.t_s,
+                np.degrees(t.estimate_rad),
+                lw=0.6 if faint else 1.0,
+                alpha=0.3 if faint else 0.9,
+                label=t.estimator,
+            )
+        ax.plot(mine[0].t_s, np.degrees(mine[0].reference_rad), "k--", lw=1.2, label="Reference")
         ax.set(xlabel="t [s]", ylabel="β [deg]", title=f"{scen}: sideslip angle")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=3)

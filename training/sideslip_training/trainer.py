@@ -20,7 +20,7 @@ from torch import nn
 from .dataset import Normalizer, WindowIndex
 from .model import ModelConfig, SideslipNet
 
-VAL_BATCH = 8192  # windows per validation forward pass (memory, not accuracy)
+VAL_BATCH = 2048  # windows per validation forward pass: bounds GPU memory, not accuracy
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,10 @@
 """Write received messages into a rosbag2 MCAP bag as they arrive (the recorder's output).
 
-The bag is what ``ros2 bag record -s mcap`` writes: metadata version
-:data:`~sideslip_msgs_py.bag.ROSBAG2_VERSION`, storage ``mcap``, serialisation ``cdr``,
-Jazzy message definitions and type hashes, each topic's offered QoS profiles, and by
-default zstd chunk compression (as :func:`sideslip_msgs_py.bag.write_bag`). Messages
-are stored byte for byte as received.
+The bag is what ``ros2 bag record -s mcap`` writes, set up by
+:func:`sideslip_msgs_py.bag.open_writer` as every bag we write (metadata version
+:data:`~sideslip_msgs_py.bag.ROSBAG2_VERSION`, storage ``mcap``, by default zstd chunk
+compression): serialisation ``cdr``, Jazzy message definitions and type hashes, each
+topic's offered QoS profiles. Messages are stored byte for byte as received.
 
 rosbags' MCAP writer collects messages in an in-memory chunk of up to 1 MiB;
 :meth:`BagSink.flush` writes the pending chunk to disk so that, should the recorder be
@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sideslip_msgs_py.bag import ROSBAG2_VERSION, _clear_output
+from sideslip_msgs_py.bag import open_writer
 from sideslip_msgs_py.errors import BagError
 
 from .errors import UnknownTypeError
@@ -115,16 +115,4 @@ def open_sink(path: str | Path, *, compress: bool = True, force: bool = False) -
         BagExistsError: ``path`` exists and ``force`` is false, or it is not a bag.
         BagError: the directory cannot be created.
     """
-    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-
-    path = Path(path)
-    _clear_output(path, force=force)
-    writer = Writer(path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
-    if compress:
-        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-    try:
-        writer.open()
-    except Exception as err:
-        msg = f"{path}: cannot create the bag: {err}"
-        raise BagError(msg) from None
-    return BagSink(writer, jazzy_typestore())
+    return BagSink(open_writer(path, force=force, compress=compress), jazzy_typestore())

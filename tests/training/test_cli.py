@@ -1,0 +1,152 @@
+"""sideslip-train and sideslip-evaluate end to end on small real bags, and their refusals."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sideslip_estimator.backends import create_backend
+from sideslip_estimator.estimator import Estimator, EstimatorParams
+from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
+from sideslip_msgs_py.sample import SampleArrays
+from sideslip_training.cli import evaluate_main, train_main
+from sideslip_training.dataset import load_runs
+from sideslip_training.evaluate import predict_run
+from sideslip_training.export import load_model
+
+TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
+
+
+def _feed(est: Estimator, s: SampleArrays) -> list[float]:
+    """Drive the estimator core with a run's samples as the node would."""
+    out = []
+    for i in range(len(s)):
+        stamp = int(s.stamp_ns[i])
+        est.on_twist("twist", TwistFields(stamp, float(s.x_v_mps[i]), float(s.y_v_mps[i])))
+        est.on_steering("steering", SteeringFields(stamp, float(s.stl_m[i]), 0.0))
+        o = est.on_imu(
+            "imu",
+            ImuFields(
+                stamp, float(s.x_a_mps2[i]), float(s.y_a_mps2[i]), float(s.yaw_rate_radps[i])
+            ),
+        )
+        if o is not None:
+            out.append(o.estimate.beta_rad)
+    return out
+
+
+def test_train_export_evaluate_and_run_in_the_estimator(sim_bag_dir: Path, tmp_path: Path):
+    model = tmp_path / "lstm.safetensors"
+    code = train_main(
+        [
+            "--data",
+            str(sim_bag_dir),
+            "--model",
+            "lstm",
+            "--hidden-units",
+            "8",
+            "--out",
+            str(model),
+            *TINY,
+        ]
+    )
+    assert code == 0
+    run_dir = tmp_path / "lstm.run"
+    for name in ("config.json", "history.json", "metrics.json"):
+        assert (run_dir / name).is_file()
+    config = json.loads((run_dir / "config.json").read_text())
+    assert not set(config["train_bags"]) & set(config["val_bags"]), "split leaks bags"
+    _, meta = read_artifact(model)
+    assert meta.hidden_units == 8 and meta.architecture == "lstm"
+    assert meta.training_data_digest == config["data_digest"]
+    assert math.isfinite(meta.metrics["val_mae_deg"])
+
+    report = tmp_path / "report"
+    assert (
+        evaluate_main(["--model", str(model), "--data", str(sim_bag_dir), "--out", str(report)])
+        == 0
+    )
+    table = (report / "table.md").read_text()
+    assert (
+        "| LSTM |" in table and "Kinematic (raw)" in table and "Kinematic (20-step mean)" in table
+    )
+    assert (
+        len(list(report.glob("trace_*.png"))) == 4
+        and len(list(report.glob("error_pdf_*.png"))) == 4
+    )
+
+    # The exported file in the estimator's back-end gives the trainer's network output.
+    runs, _ = load_runs([sim_bag_dir])
+    net, meta = load_model(model)
+    expected = predict_run(net, meta, runs[0])
+    backend = create_backend("pso_lstm", {"model_file": str(model)}, meta.window_steps)
+    est = Estimator(backend, EstimatorParams(window_steps=meta.window_steps, max_gap_s=1.0))
+    got = _feed(est, runs[0].samples)
+    assert len(got) == len(expected)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+
+
+def test_pso_run_saves_history_and_resumes_to_the_same_result(sim_bag_dir: Path, tmp_path: Path):
+    model = tmp_path / "pso.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
+    args[args.index("--max-epochs") + 1] = "1"
+    assert train_main(args) == 0
+    run_dir = tmp_path / "pso.run"
+    history = json.loads((run_dir / "pso_history.json").read_text())
+    assert len(history["iterations"]) == 6  # quick: 5 iterations after the initial swarm
+    assert all(len(it["particles"]) == 6 for it in history["iterations"])
+    assert (run_dir / "pso_convergence.png").is_file()
+    _, meta = read_artifact(model)
+    assert meta.pso is not None and meta.pso["trainings"] == 36
+    best = meta.pso["best_val_mae_deg"]
+    assert meta.hidden_units == meta.pso["best_hidden_units"]
+
+    # An interrupted PSO continues from its state: here it has nothing left to do.
+    assert train_main([*args, "--resume"]) == 0
+    _, again = read_artifact(model)
+    assert again.pso["best_val_mae_deg"] == best
+    assert again.pso["best_hidden_units"] == meta.pso["best_hidden_units"]
+
+
+def test_refuses_an_existing_output_without_force(sim_bag_dir, tmp_path, capsys):
+    out = tmp_path / "m.safetensors"
+    out.write_bytes(b"keep me")
+    code = train_main(["--data", str(sim_bag_dir), "--model", "lstm", "--out", str(out), *TINY])
+    assert code == 2
+    assert "exists; pass --force" in capsys.readouterr().err
+    assert out.read_bytes() == b"keep me"
+
+
+def test_refuses_empty_data(tmp_path, capsys):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    out = tmp_path / "m.safetensors"
+    code = train_main(["--data", str(empty), "--model", "lstm", "--out", str(out), *TINY])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert str(empty) in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_refuses_a_feature_the_bags_lack(make_arrays, write_arrays, tmp_path, capsys):
+    # A real car's bags without lateral velocity: fine for `measurable`, not for `paper`.
+    for i in range(3):
+        a = make_arrays(800, seed=i)
+        cols = dict(vars(a)) | {"y_v_mps": np.full(len(a), np.nan)}
+        write_arrays(f"car{i}", SampleArrays(**cols), folder=tmp_path / "bags")
+    out = tmp_path / "m.safetensors"
+    base = ["--data", str(tmp_path / "bags"), "--model", "lstm", "--out", str(out), *TINY]
+    assert train_main([*base, "--features", "paper"]) == 2
+    assert "y_v_mps" in capsys.readouterr().err
+    assert train_main([*base, "--features", "measurable", "--hidden-units", "4"]) == 0
+
+
+def test_evaluate_refuses_a_file_that_is_not_a_model(sim_bag_dir, tmp_path, capsys):
+    bad = tmp_path / "x.safetensors"
+    bad.write_bytes(b"not a model")
+    assert evaluate_main(["--model", str(bad), "--data", str(sim_bag_dir)]) == 2
+    assert str(bad) in capsys.readouterr().err
