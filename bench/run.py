@@ -174,14 +174,42 @@ def bench_simulator(vehicle) -> dict[str, object]:
     }
 
 
+def bench_training() -> dict[str, object]:
+    """CPU training throughput on paper-train (stride 10 to keep `make bench` short), plus
+    the GPU figures measured on the session's H100 (bench/training_throughput_h100.json,
+    from `python training/scripts/measure_throughput.py --device cuda` there)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "training" / "scripts"))
+    from measure_throughput import measure
+
+    print("training: CPU throughput on paper-train (stride 10) ...", flush=True)
+    with tempfile.TemporaryDirectory(prefix="sideslip-bench-train-") as tmp:
+        out = Path(tmp) / "train"
+        out.mkdir()
+        generate(
+            load_vehicle("paper_sedan"),
+            paper_train(),
+            out,
+            preset_name="paper-train",
+            progress=False,
+            jobs=min(2, os.cpu_count() or 1),
+        )
+        cpu = measure([str(out)], "cpu", stride=10)
+    gpu_file = Path(__file__).with_name("training_throughput_h100.json")
+    return {
+        "cpu": cpu,
+        "gpu_h100": json.loads(gpu_file.read_text()) if gpu_file.exists() else None,
+        "gpu_note": "measured on the session's H100 (16 cores), stride 1, same script",
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench/results.json"))
     parser.add_argument(
         "--sections",
         nargs="+",
-        choices=["simulator", "ros"],
-        default=["simulator", "ros"],
+        choices=["simulator", "ros", "training", "inference"],
+        default=["simulator", "ros", "training", "inference"],
         help="which benchmark sections to run (others keep their previous results)",
     )
     parser.add_argument("--ros-seconds", type=float, default=30.0)
@@ -208,7 +236,15 @@ def main(argv: list[str] | None = None) -> int:
             print(f"ros: sim + estimator + listener, {executor} executor ...", flush=True)
             ros[executor] = run_ros(args.ros_seconds, executor)
         results["ros_runtime"] = ros
-    for section in ("simulator", "ros_runtime"):
+    if "training" in args.sections:
+        results["training"] = bench_training()
+    if "inference" in args.sections:
+        from inference import main as inference_main  # imports torch: only when asked
+
+        tmp = Path(tempfile.mkdtemp(prefix="sideslip-inference-")) / "inference.json"
+        inference_main(["--json", str(tmp)])
+        results["inference"] = json.loads(tmp.read_text())
+    for section in ("simulator", "ros_runtime", "training", "inference"):
         if section in results:
             results[section]["measured"] = {  # type: ignore[index]
                 "date_utc": results["date_utc"],

@@ -412,9 +412,11 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             models.append((model_label(meta), net, meta))
         names = [m[0] for m in models]
         if len(set(names)) != len(names):  # two LSTMs: tell them apart by file
+            stems = [p.stem for p in args.model]
+            tags = stems if len(set(stems)) == len(stems) else [p.parent.name for p in args.model]
             models = [
-                (f"{n} ({p.stem})", net, meta)
-                for (n, net, meta), p in zip(models, args.model, strict=True)
+                (f"{n} ({tag})", net, meta)
+                for (n, net, meta), tag in zip(models, tags, strict=True)
             ]
         windows = {meta.window_steps for _, _, meta in models}
         if len(windows) != 1:

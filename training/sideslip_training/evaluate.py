@@ -21,7 +21,7 @@ import numpy.typing as npt
 import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata
-from sideslip_msgs_py.features import channel_indices
+from sideslip_msgs_py.features import FEATURE_SETS, channel_indices
 
 from .dataset import Run
 from .model import SideslipNet
@@ -73,7 +73,11 @@ class Trace:
 def model_label(meta: ModelMetadata) -> str:
     """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (+ feature set when not paper)."""
     arch = "LSTM" if meta.architecture == "lstm" else "BiLSTM"
-    return f"PSO-{arch}" if meta.pso else arch
+    label = f"PSO-{arch}" if meta.pso else arch
+    for name, channels in FEATURE_SETS.items():
+        if tuple(meta.features) == channels and name != "paper":
+            label += f" [{name}]"
+    return label
 
 
 def predict_run(model: SideslipNet, meta: ModelMetadata, run: Run) -> FloatArray:
