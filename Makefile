@@ -32,10 +32,19 @@ format: venv
 test: venv lint
 	$(PY) -m pytest
 
-# The main job for now: generate the paper's Table 4 test scenarios with paper noise
-# and print a per-scenario summary of sideslip, lateral acceleration and speed.
+# make demo: the Table 4 test scenarios as labelled bags in data/paper-test/ (with a
+# per-scenario summary), then the live system: the simulator drives scenario 2 in real
+# time, the estimator runs the shipped PSO-LSTM, and sideslip-watch prints the estimate
+# against the ground truth (ROS 2 from the PyPI wheels, loopback only).
 demo: venv
 	$(VENV)/bin/sideslip-generate --preset paper-test --out $(DEMO_OUT) --noise paper --force
+	@echo "--- live: sim_node (scen2) -> estimator_node (pso_lstm) -> sideslip-watch ---"
+	@export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42}; \
+	$(VENV)/bin/sideslip-estimator --ros-args -p backend:=pso_lstm > $(VENV)/demo-estimator.log 2>&1 & est=$$!; \
+	$(VENV)/bin/sideslip-watch & watch=$$!; \
+	$(VENV)/bin/sideslip-sim --ros-args -p scenario:=scen2 -p wait_for_subscribers:=1 \
+		> $(VENV)/demo-sim.log 2>&1; status=$$?; \
+	kill -INT $$watch; wait $$watch; kill -INT $$est; wait $$est; exit $$status
 
 bench: venv
 	$(PY) bench/run.py --out bench/results.json

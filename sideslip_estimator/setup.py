@@ -29,6 +29,7 @@ setup(
         "console_scripts": [
             "estimator_node = sideslip_estimator.node:main",
             "sideslip-estimator = sideslip_estimator.node:main",
+            "sideslip-watch = sideslip_estimator.tools.watch:main",
         ],
     },
 )

@@ -177,3 +177,14 @@ def test_bad_parameter_exits_2_naming_it(spawn, args, named):
     sim = spawn("sideslip-sim", "--ros-args", *args)
     assert sim.proc.wait(30) == 2
     assert named in sim.output()
+
+
+def test_watch_reports_the_estimate_against_ground_truth(spawn, probe):
+    spawn("sideslip-estimator")
+    watch = spawn("sideslip-watch", "--duration", "10", "--quiet")
+    spawn("sideslip-sim", *sim_args("-p", "noise:=none", "-p", "loop:=true"))
+    assert watch.proc.wait(60) == 0, watch.output()
+    summary = watch.output().strip().splitlines()[-1]
+    assert "estimates against ground truth" in summary
+    mae = float(summary.split("MAE ")[1].split("°")[0])
+    assert int(summary.split()[0]) > 1000 and mae < 0.01  # noise-free kinematic: exact

@@ -1,0 +1,1 @@
+"""Command-line tools of the estimator package (rclpy users, like node.py)."""
