@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -23,6 +22,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+from machine import cpu_model, git_commit
 
 from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
 from sideslip_estimator.window import SampleWindow
@@ -33,26 +33,6 @@ WINDOW_STEPS = 100
 STEP_NS = 2_500_000
 CONFIGS = (("lstm", 32), ("lstm", 64), ("lstm", 128), ("bilstm", 64))
 TARGET_P99_US = 500.0
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def _git_commit() -> str:
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-        )
-        return out.stdout.strip() or "unknown"
-    except OSError:
-        return "unknown"
 
 
 def random_artifact(path: Path, architecture: str, hidden: int, seed: int = 0) -> Path:
@@ -156,8 +136,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{key}: {results[key]}", file=sys.stderr)
     report = {
         "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": _git_commit(),
-        "machine": {"cpu": _cpu_model(), "python": platform.python_version()},
+        "commit": git_commit(),
+        "machine": {"cpu": cpu_model(), "python": platform.python_version()},
         "torch": torch.__version__,
         "threads": args.threads,
         "window_steps": WINDOW_STEPS,

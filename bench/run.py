@@ -6,7 +6,7 @@ wall-clock time measured in the same run. Targets (issue #2):
 - batch simulation of paper-train >= 1000x real time: measured on one core and as the
   aggregate of all (2) cores;
 - paper-train with paper noise, bags written, in < 60 s on this 2-core machine.
-ROS runtime (issue #3, `bench/ros_runtime.py`): sim node at 400 Hz real time over 30 s,
+ROS runtime (issue #3, `bench/tools/ros_runtime.py`): sim node at 400 Hz real time over 30 s,
 rate within 0.5 % and inter-message jitter p99 < 1 ms; estimator end-to-end latency
 (sensor stamp → /sideslip/twist received in another process) p99 < 2 ms. Measured with
 rclpy's EventsExecutor (the nodes' default) and, for comparison in the same run, the
@@ -22,38 +22,19 @@ import multiprocessing
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from machine import cpu_model, git_commit
+
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import paper_train
 from sideslip_sim.simulate import DT_S, Stepper, simulate
 from sideslip_sim.vehicle import load_vehicle
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def _git_commit() -> str:
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-        )
-        return out.stdout.strip() or "unknown"
-    except OSError:
-        return "unknown"
 
 
 def bench_node_path(vehicle, seconds: float = 60.0) -> dict[str, float]:
@@ -217,9 +198,9 @@ def main(argv: list[str] | None = None) -> int:
     vehicle = load_vehicle("paper_sedan")
     results: dict[str, object] = {
         "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": _git_commit(),
+        "commit": git_commit(),
         "machine": {
-            "cpu": _cpu_model(),
+            "cpu": cpu_model(),
             "cores": os.cpu_count(),
             "python": sys.version.split()[0],
             "platform": platform.platform(),
@@ -229,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     if "simulator" in args.sections:
         results["simulator"] = bench_simulator(vehicle)
     if "ros" in args.sections:
-        from ros_runtime import run as run_ros  # imports rclpy: only when asked for
+        from tools.ros_runtime import run as run_ros  # imports rclpy: only when asked for
 
         ros = {}
         for executor in ("events", "single_threaded"):
@@ -257,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.write_text(json.dumps(previous, indent=2) + "\n")
     print(
         json.dumps(
-            {k: v for k, v in results.items() if k in ("simulator", "ros_runtime")}, indent=2
+            {k: v for k, v in results.items() if k in (*args.sections, "ros_runtime")}, indent=2
         )
     )
     return 0

@@ -10,7 +10,6 @@ with a bag folder mounted for the recorder.
 
 from __future__ import annotations
 
-import ast
 import re
 import shlex
 from dataclasses import dataclass
@@ -18,6 +17,7 @@ from pathlib import Path, PurePosixPath
 
 import pytest
 import yaml
+from package_support import console_scripts
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCKERFILE = ROOT / "docker" / "Dockerfile"
@@ -32,18 +32,6 @@ SERVICE_EXECUTABLES = {
     "estimator": ("sideslip_estimator", "estimator_node"),
     "recorder": ("sideslip_sim", "sideslip-record"),
 }
-
-
-def console_scripts(package: str) -> dict[str, str]:
-    """``{script name: "module:function"}`` from the package's setup.py, read without running it."""
-    tree = ast.parse((ROOT / package / "setup.py").read_text())
-    for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "setup":
-            for keyword in call.keywords:
-                if keyword.arg == "entry_points":
-                    entries = ast.literal_eval(keyword.value).get("console_scripts", [])
-                    return dict((part.strip() for part in entry.split("=", 1)) for entry in entries)
-    return {}
 
 
 # --- Dockerfile ------------------------------------------------------------------------------

@@ -11,13 +11,13 @@ launch files under ``share/<pkg>/``, and every Python sub-package on the path th
 
 from __future__ import annotations
 
-import ast
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from package_support import console_scripts
 
 ROOT = Path(__file__).resolve().parents[2]
 WORKSPACE = ROOT / "ros_ws"
@@ -38,18 +38,6 @@ REQUIRED_SCRIPTS = {
     "sideslip_estimator": {"estimator_node", "sideslip-estimator"},
 }
 BUILD_TIMEOUT_S = 120
-
-
-def console_scripts(package: str) -> dict[str, str]:
-    """``{script name: "module:function"}`` from the package's setup.py, read without running it."""
-    tree = ast.parse((ROOT / package / "setup.py").read_text())
-    for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "setup":
-            for keyword in call.keywords:
-                if keyword.arg == "entry_points":
-                    entries = ast.literal_eval(keyword.value).get("console_scripts", [])
-                    return dict((part.strip() for part in entry.split("=", 1)) for entry in entries)
-    return {}
 
 
 def clean_env(tmp: Path) -> dict[str, str]:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from package_support import console_scripts
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_estimator")
@@ -36,18 +37,6 @@ VAR = re.compile(r"\$\(var\s+([\w-]+)\)")
 # Parameters every rclpy node declares itself (and qos_overrides.*): not in ParameterSpecs.
 BUILT_IN_PARAMETERS = {"use_sim_time"}
 UNKNOWN = object()
-
-
-def console_scripts(package: str) -> dict[str, str]:
-    """``{script name: "module:function"}`` from the package's setup.py, read without running it."""
-    tree = ast.parse((ROOT / package / "setup.py").read_text())
-    for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "setup":
-            for keyword in call.keywords:
-                if keyword.arg == "entry_points":
-                    entries = ast.literal_eval(keyword.value).get("console_scripts", [])
-                    return dict((part.strip() for part in entry.split("=", 1)) for entry in entries)
-    return {}
 
 
 def declared_parameters(package: str) -> dict[str, object]:

@@ -11,7 +11,7 @@ the subscriber that measures. Receive times are taken in the subscription callba
 * latency: /sideslip/twist receive time − its stamp. The sim stamps each step with the
   wall time it is due, so this is sensor time → estimate in another process.
 
-Run alone: ``python bench/ros_runtime.py --seconds 30`` (``make bench`` runs it too).
+Run alone: ``python bench/tools/ros_runtime.py --seconds 30`` (``make bench`` runs it too).
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""Benchmark helpers that run ROS 2 nodes (rclpy users, like the packages' node modules)."""
