@@ -17,14 +17,14 @@ from sideslip_msgs_py.features import CHANNELS, feature_set
 from sideslip_msgs_py.sample import SampleArrays
 from sideslip_training.dataset import (
     DatasetError,
-    Normalizer,
     Run,
-    WindowIndex,
     data_digest,
     find_bags,
     load_runs,
     split_runs,
 )
+from sideslip_training.normalize import Normalizer
+from sideslip_training.windows import WindowIndex
 
 T = 100
 SIM_BAG_NAMES = ("dlc_70", "sine_60", "sine_80", "straight_50")  # conftest's sim_bag_dir

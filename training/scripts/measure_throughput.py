@@ -17,8 +17,10 @@ import torch
 
 from sideslip_msgs_py.features import feature_set
 from sideslip_training.config import WINDOW_STEPS
-from sideslip_training.dataset import Normalizer, WindowIndex, load_runs
+from sideslip_training.dataset import load_runs
+from sideslip_training.normalize import Normalizer
 from sideslip_training.trainer import TrainConfig, train_model
+from sideslip_training.windows import WindowIndex
 
 
 def measure(data: list[str], device: str = "auto", stride: int = 1) -> dict:

@@ -27,9 +27,11 @@ from sideslip_msgs_py.features import FeatureError, feature_set
 
 from . import __version__
 from .config import DT_S, WINDOW_STEPS, TrainProfile, profile
-from .dataset import DatasetError, Normalizer, Run, WindowIndex, data_digest, load_runs, split_runs
+from .dataset import DatasetError, Run, data_digest, load_runs, split_runs
 from .export import export_model, load_model
+from .normalize import Normalizer
 from .trainer import EpochRecord, TrainConfig, TrainResult, train_model
+from .windows import WindowIndex
 
 EXIT_BAD_INPUT = 2
 

@@ -1,4 +1,4 @@
-"""Bags → aligned runs → train/validation split → z-score → windows the trainer indexes.
+"""Bags → aligned runs → train/validation split: the runs the trainer's windows come from.
 
 The pipeline, each step a plain function or frozen dataclass:
 
@@ -10,15 +10,21 @@ The pipeline, each step a plain function or frozen dataclass:
    gaps in time and non-finite samples each get a line naming the bag.
 3. :func:`split_runs` splits by bag, never by window, so no window of a validation bag
    overlaps a training window.
-4. :class:`Normalizer` holds the z-score statistics, fitted on the training runs only.
-5. :class:`WindowIndex` holds the normalised samples of all runs back to back, plus the
-   index of the last sample of every valid window; a batch gathers its windows from that
-   (``ends[i] - T + 1 .. ends[i]``), so the windows themselves are never materialised
-   (428 k samples × 100 steps × 6 features would be 1 GB; the samples are 10 MB).
+4. :class:`~sideslip_training.normalize.Normalizer` (module :mod:`.normalize`) holds the
+   z-score statistics, fitted on the training runs only.
+5. :class:`~sideslip_training.windows.WindowIndex` (module :mod:`.windows`) indexes the
+   windows over the normalised runs.
+
+:func:`data_digest` fingerprints the runs for provenance.
+
+This module holds steps 1-3 only and does not re-export the other two: they build on
+:class:`Run` and :class:`DatasetError` from here, so a re-export would make an import
+cycle. Import ``Normalizer`` from ``sideslip_training.normalize`` and ``WindowIndex`` /
+``TorchWindows`` from ``sideslip_training.windows``.
 
 Units: features keep the units of :data:`sideslip_msgs_py.features.CHANNELS` (m/s, m/s²,
-rad/s, m) before normalisation; β is in radians (β = atan2(v_y, v_x) of the ground truth);
-stamps are int64 nanoseconds; ``max_gap_s`` is in seconds.
+rad/s, m); β is in radians (β = atan2(v_y, v_x) of the ground truth); stamps are int64
+nanoseconds; ``max_gap_s`` is in seconds.
 """
 
 from __future__ import annotations
@@ -27,27 +33,16 @@ import dataclasses
 import hashlib
 import itertools
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
-import numpy.typing as npt
 
 from sideslip_msgs_py.bag import read_bag
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.sample import SampleArrays
-
-if TYPE_CHECKING:
-    import torch
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-
-STD_FLOOR: Final = 1e-9
-"""A channel whose standard deviation is at most this (in its own unit) is constant in
-the training data: it gets std 1.0 (so it is only centred) and a note in the normalizer."""
 
 BETA: Final = "beta_rad"
 """Name under which the target β [rad] appears in reports and non-finite counts."""
@@ -250,7 +245,7 @@ def load_runs(
             The default (10 ms = 4 steps at 400 Hz) tolerates a few lost IMU messages.
         channels: channels checked for NaN/inf and reported (default: every model
             channel); β is always checked when present. Windows containing such samples
-            are never produced (:meth:`WindowIndex.build`).
+            are never produced (:meth:`~.windows.WindowIndex.build`).
         on_bag: called with each bag's path before it is read (e.g. a progress bar).
 
     Returns:
@@ -397,318 +392,6 @@ def split_runs(runs: Sequence[Run], val_fraction: float, seed: int) -> tuple[lis
     n_val = min(max(round(val_fraction * len(bags)), 1), len(bags) - 1)
     val_bags = set(sorted(bags, key=lambda b: _split_key(seed, b))[:n_val])
     return [r for r in runs if r.bag not in val_bags], [r for r in runs if r.bag in val_bags]
-
-
-# --- z-score ----------------------------------------------------------------------------------
-
-
-def _feature_matrix(samples: SampleArrays, features: Sequence[str]) -> FloatArray:
-    """(S, F) float64 of ``features`` in the given order (units of CHANNELS)."""
-    return np.column_stack([np.asarray(getattr(samples, c), np.float64) for c in features])
-
-
-@dataclass(frozen=True, eq=False)
-class Normalizer:
-    """Z-score statistics: z = (x − mean) / std per feature, and likewise for β.
-
-    Attributes:
-        features: channel names, in model input order.
-        mean: per-feature mean, in the channel's unit (float64, read-only).
-        std: per-feature standard deviation (population), in the channel's unit; 1.0 for
-            a channel constant in the training data (std ≤ :data:`STD_FLOOR`), see notes.
-        beta_mean: mean of β [rad].
-        beta_std: standard deviation of β [rad] (1.0 when β is constant).
-        notes: channels that got std 1.0 and why.
-    """
-
-    features: tuple[str, ...]
-    mean: FloatArray
-    std: FloatArray
-    beta_mean: float
-    beta_std: float
-    notes: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "features", tuple(self.features))
-        channel_indices(self.features)
-        for name in ("mean", "std"):
-            arr = np.array(getattr(self, name), dtype=np.float64)
-            if arr.shape != (len(self.features),) or not np.isfinite(arr).all():
-                msg = f"Normalizer.{name} must be {len(self.features)} finite values, got {arr}"
-                raise DatasetError(msg)
-            arr.flags.writeable = False
-            object.__setattr__(self, name, arr)
-        object.__setattr__(self, "beta_mean", float(self.beta_mean))
-        object.__setattr__(self, "beta_std", float(self.beta_std))
-        stds = [*self.std.tolist(), self.beta_std]
-        if not (all(s > 0.0 for s in stds) and math.isfinite(self.beta_mean + self.beta_std)):
-            msg = f"Normalizer: std must be positive and finite, got {stds}"
-            raise DatasetError(msg)
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Normalizer):
-            return NotImplemented
-        return self.to_dict() == other.to_dict()
-
-    __hash__ = None  # type: ignore[assignment]
-
-    @classmethod
-    def fit(cls, runs: Sequence[Run], features: Sequence[str]) -> Normalizer:
-        """Statistics over every finite sample of ``runs`` (pass the training runs only).
-
-        Each channel uses its own finite values (a NaN in one channel does not remove the
-        sample from the others). Raises DatasetError when a channel or β has none.
-        """
-        features = tuple(features)
-        channel_indices(features)
-        if not runs:
-            raise DatasetError("Normalizer.fit: no runs")
-        columns = [*features, BETA]
-        values: dict[str, list[FloatArray]] = {c: [] for c in columns}
-        for run in runs:
-            if not run.samples.has_truth:
-                msg = f"Normalizer.fit: run {run.name} has no ground truth β"
-                raise DatasetError(msg)
-            for c in features:
-                values[c].append(np.asarray(getattr(run.samples, c), np.float64))
-            values[BETA].append(run.samples.beta_rad())
-        means: list[float] = []
-        stds: list[float] = []
-        notes: list[str] = []
-        for c in columns:
-            v = np.concatenate(values[c])
-            v = v[np.isfinite(v)]
-            if v.size == 0:
-                msg = f"Normalizer.fit: {c} has no finite value in {len(runs)} run(s)"
-                raise DatasetError(msg)
-            mean, std = float(v.mean()), float(v.std())
-            if std <= STD_FLOOR:
-                notes.append(
-                    f"{c} is constant ({mean:g}) in the training data: std set to 1.0, "
-                    "so it is only centred"
-                )
-                std = 1.0
-            means.append(mean)
-            stds.append(std)
-        return cls(
-            features,
-            np.array(means[:-1]),
-            np.array(stds[:-1]),
-            means[-1],
-            stds[-1],
-            tuple(notes),
-        )
-
-    def apply_features(self, x: npt.ArrayLike) -> FloatArray:
-        """Normalise features ``x`` (..., F), columns in :attr:`features` order → float64."""
-        arr = np.asarray(x, dtype=np.float64)
-        if arr.ndim == 0 or arr.shape[-1] != len(self.features):
-            want = len(self.features)
-            msg = f"apply_features: last axis must hold {want} features, got shape {arr.shape}"
-            raise DatasetError(msg)
-        return (arr - self.mean) / self.std
-
-    def apply_beta(self, beta_rad: npt.ArrayLike) -> FloatArray:
-        """β [rad] → normalised β."""
-        return (np.asarray(beta_rad, dtype=np.float64) - self.beta_mean) / self.beta_std
-
-    def invert_beta(self, z: npt.ArrayLike) -> FloatArray:
-        """Normalised β → β [rad]."""
-        return np.asarray(z, dtype=np.float64) * self.beta_std + self.beta_mean
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (floats round-trip exactly through JSON)."""
-        return {
-            "features": list(self.features),
-            "mean": self.mean.tolist(),
-            "std": self.std.tolist(),
-            "beta_mean": self.beta_mean,
-            "beta_std": self.beta_std,
-            "notes": list(self.notes),
-        }
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Normalizer:
-        """Inverse of :meth:`to_dict`; unknown or missing keys are an error."""
-        keys = {"features", "mean", "std", "beta_mean", "beta_std", "notes"}
-        unknown, missing = set(data) - keys, keys - {"notes"} - set(data)
-        if unknown or missing:
-            msg = f"normalizer: unknown keys {sorted(unknown)}, missing keys {sorted(missing)}"
-            raise DatasetError(msg)
-        try:
-            return cls(
-                tuple(str(f) for f in data["features"]),
-                np.array(data["mean"], dtype=np.float64),
-                np.array(data["std"], dtype=np.float64),
-                float(data["beta_mean"]),
-                float(data["beta_std"]),
-                tuple(str(n) for n in data.get("notes", ())),
-            )
-        except (TypeError, ValueError) as err:
-            if isinstance(err, DatasetError):
-                raise
-            msg = f"normalizer: bad value: {err}"
-            raise DatasetError(msg) from None
-
-
-# --- windows ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, eq=False)
-class WindowIndex:
-    """Normalised samples of all runs back to back and the windows over them.
-
-    Window ``i`` is ``x[ends[i] - window_steps + 1 : ends[i] + 1]`` (oldest row first);
-    its target is ``y[ends[i]]``, the normalised β of its last sample. Within a run,
-    windows start at samples 0, stride, 2·stride, ... (so the first window of every run
-    long enough is always included, the last sample only when the grid reaches it);
-    windows that would cross the run's end or contain a non-finite feature, and windows
-    whose target β is non-finite, are left out. Runs are never joined: a window never
-    spans two runs (or two segments of a bag split at a gap).
-
-    Attributes:
-        x: (S, F) float32 normalised features, S = samples of all runs.
-        y: (S,) float32 normalised β at each sample (NaN where β is).
-        ends: (N,) int64 index into x of the last sample of each window.
-        run_of_window: (N,) int64 index into ``run_names`` of each window's run.
-        run_names: names of the runs, in order.
-        run_starts: (R + 1,) int64 offsets: run r is ``x[run_starts[r]:run_starts[r+1]]``.
-        stamp_ns: (S,) int64 stamp of each sample [ns].
-        beta_rad: (S,) float64 ground-truth β [rad] (unrounded, for metrics).
-        features, window_steps, stride: as built.
-        notes: runs too short for one window, or with windows left out.
-    """
-
-    x: npt.NDArray[np.float32]
-    y: npt.NDArray[np.float32]
-    ends: IntArray
-    run_of_window: IntArray
-    run_names: tuple[str, ...]
-    run_starts: IntArray
-    stamp_ns: IntArray
-    beta_rad: FloatArray
-    features: tuple[str, ...]
-    window_steps: int
-    stride: int
-    notes: tuple[str, ...] = ()
-
-    def __len__(self) -> int:
-        return int(self.ends.shape[0])
-
-    @classmethod
-    def build(
-        cls,
-        runs: Sequence[Run],
-        features: Sequence[str],
-        normalizer: Normalizer,
-        window_steps: int = 100,
-        stride: int = 1,
-    ) -> WindowIndex:
-        """Normalise ``runs`` with ``normalizer`` and index their windows.
-
-        Raises:
-            DatasetError: features differ from the normalizer's, a run has no ground
-                truth, or ``window_steps`` / ``stride`` < 1.
-        """
-        features = tuple(features)
-        if features != normalizer.features:
-            msg = f"features {features} differ from the normalizer's {normalizer.features}"
-            raise DatasetError(msg)
-        if window_steps < 1 or stride < 1:
-            msg = f"window_steps and stride must be >= 1, got {window_steps} and {stride}"
-            raise DatasetError(msg)
-        xs, betas, stamps, ends, owners, notes = [], [], [], [], [], []
-        offset = 0
-        starts = [0]
-        for r, run in enumerate(runs):
-            if not run.samples.has_truth:
-                msg = f"WindowIndex.build: run {run.name} has no ground truth β"
-                raise DatasetError(msg)
-            raw = _feature_matrix(run.samples, features)
-            beta = run.samples.beta_rad()
-            n = raw.shape[0]
-            candidates = np.arange(window_steps - 1, n, stride, dtype=np.int64)
-            bad = np.concatenate([[0], np.cumsum(~np.isfinite(raw).all(axis=1))])
-            clean = (bad[candidates + 1] - bad[candidates + 1 - window_steps] == 0) & np.isfinite(
-                beta[candidates]
-            )
-            valid = candidates[clean]
-            if candidates.size == 0:
-                notes.append(f"{run.name}: {n} samples, shorter than one window ({window_steps})")
-            elif valid.size < candidates.size:
-                notes.append(
-                    f"{run.name}: {candidates.size - valid.size} of {candidates.size} windows "
-                    "left out (non-finite feature or β)"
-                )
-            xs.append(raw)
-            betas.append(beta)
-            stamps.append(run.samples.stamp_ns)
-            ends.append(valid + offset)
-            owners.append(np.full(valid.shape, r, dtype=np.int64))
-            offset += n
-            starts.append(offset)
-        width = len(features)
-        x_all = np.concatenate(xs) if xs else np.empty((0, width))
-        beta_all = np.concatenate(betas) if betas else np.empty(0)
-        return cls(
-            x=normalizer.apply_features(x_all).astype(np.float32),
-            y=normalizer.apply_beta(beta_all).astype(np.float32),
-            ends=np.concatenate(ends) if ends else np.empty(0, np.int64),
-            run_of_window=np.concatenate(owners) if owners else np.empty(0, np.int64),
-            run_names=tuple(run.name for run in runs),
-            run_starts=np.array(starts, dtype=np.int64),
-            stamp_ns=np.concatenate(stamps) if stamps else np.empty(0, np.int64),
-            beta_rad=beta_all,
-            features=features,
-            window_steps=window_steps,
-            stride=stride,
-            notes=tuple(notes),
-        )
-
-    def batch(
-        self, indices: npt.ArrayLike
-    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
-        """Windows ``indices`` as X (B, T, F) and their targets Y (B,), both float32."""
-        last = self.ends[np.asarray(indices, dtype=np.int64)]
-        rows = last[:, None] + np.arange(1 - self.window_steps, 1, dtype=np.int64)
-        return self.x[rows], self.y[last]
-
-    def to_torch(self, device: str | torch.device = "cpu") -> TorchWindows:
-        """The samples and window ends as tensors on ``device`` (about 24 B per sample)."""
-        import torch
-
-        dev = torch.device(device)
-        return TorchWindows(
-            x=torch.from_numpy(self.x).to(dev),
-            y=torch.from_numpy(self.y).to(dev),
-            ends=torch.from_numpy(self.ends).to(dev),
-            offsets=torch.arange(1 - self.window_steps, 1, dtype=torch.int64, device=dev),
-        )
-
-
-@dataclass(frozen=True, eq=False)
-class TorchWindows:
-    """:class:`WindowIndex` on a torch device; batches are gathered where the data lives.
-
-    Attributes:
-        x: (S, F) float32 normalised features.
-        y: (S,) float32 normalised β.
-        ends: (N,) int64 last-sample index of each window.
-        offsets: (T,) int64 ``-T+1 .. 0``.
-    """
-
-    x: torch.Tensor
-    y: torch.Tensor
-    ends: torch.Tensor
-    offsets: torch.Tensor
-
-    def __len__(self) -> int:
-        return int(self.ends.shape[0])
-
-    def batch(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Windows ``idx`` (window numbers, any device) as X (B, T, F) and Y (B,)."""
-        last = self.ends[idx.to(self.ends.device, non_blocking=True)]
-        return self.x[last[:, None] + self.offsets], self.y[last]
 
 
 # --- provenance -------------------------------------------------------------------------------

@@ -17,8 +17,9 @@ from dataclasses import asdict, dataclass, field
 import torch
 from torch import nn
 
-from .dataset import Normalizer, WindowIndex
 from .model import ModelConfig, SideslipNet
+from .normalize import Normalizer
+from .windows import WindowIndex
 
 VAL_BATCH = 2048  # windows per validation forward pass: bounds GPU memory, not accuracy
 
