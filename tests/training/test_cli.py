@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sideslip_estimator.backends import create_backend
 from sideslip_estimator.estimator import Estimator, EstimatorParams
@@ -150,3 +151,84 @@ def test_evaluate_refuses_a_file_that_is_not_a_model(sim_bag_dir, tmp_path, caps
     bad.write_bytes(b"not a model")
     assert evaluate_main(["--model", str(bad), "--data", str(sim_bag_dir)]) == 2
     assert str(bad) in capsys.readouterr().err
+
+
+def test_resume_refuses_another_run_s_data(
+    sim_bag_dir, make_arrays, write_arrays, tmp_path, capsys
+):
+    model = tmp_path / "pso.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
+    args[args.index("--max-epochs") + 1] = "1"
+    assert train_main(args) == 0
+    config = (tmp_path / "pso.run" / "config.json").read_text()
+    other = tmp_path / "other"
+    for i in range(3):
+        write_arrays(f"o{i}", make_arrays(800, seed=10 + i), folder=other)
+    resumed = [*args, "--resume"]
+    resumed[resumed.index("--data") + 1] = str(other)
+    assert train_main(resumed) == 2
+    assert "was started with other data_digest" in capsys.readouterr().err
+    assert (tmp_path / "pso.run" / "config.json").read_text() == config  # record kept
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--max-epochs", "0"], "max_epochs"),
+        (["--hidden-units", "0"], "hidden_units"),
+        (["--learning-rate", "-1"], "learning_rate"),
+    ],
+)
+def test_bad_training_settings_are_refused_before_anything_is_written(
+    sim_bag_dir, tmp_path, capsys, extra, message
+):
+    out = tmp_path / "m.safetensors"
+    code = train_main(
+        ["--data", str(sim_bag_dir), "--model", "lstm", "--out", str(out), *TINY, *extra]
+    )
+    assert code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "m.run").exists()
+
+
+def test_bags_shorter_than_a_window_are_refused(make_arrays, write_arrays, tmp_path, capsys):
+    for i in range(3):
+        write_arrays(f"short{i}", make_arrays(60, seed=i), folder=tmp_path / "bags")
+    out = tmp_path / "m.safetensors"
+    assert (
+        train_main(["--data", str(tmp_path / "bags"), "--model", "lstm", "--out", str(out), *TINY])
+        == 2
+    )
+    assert "no windows" in capsys.readouterr().err
+    assert not (tmp_path / "m.run").exists()
+
+
+def test_bags_at_another_rate_are_refused(make_arrays, write_arrays, tmp_path, capsys):
+    for i in range(3):
+        write_arrays(f"r400_{i}", make_arrays(800, seed=i), folder=tmp_path / "bags")
+    stamps = np.arange(800, dtype=np.int64) * 10_000_000  # 100 Hz
+    write_arrays("r100", make_arrays(800, seed=9, stamps_ns=stamps), folder=tmp_path / "bags")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "bags"), "--model", "lstm", "--out", str(out), *TINY]
+    assert train_main([*args, "--hidden-units", "4"]) == 2
+    assert "r100 (10.00 ms)" in capsys.readouterr().err
+
+
+def test_force_never_replaces_a_folder_that_is_not_a_run_folder(sim_bag_dir, tmp_path, capsys):
+    precious = tmp_path / "notes"
+    precious.mkdir()
+    (precious / "thesis.tex").write_text("keep")
+    out = tmp_path / "m.safetensors"
+    args = [
+        "--data",
+        str(sim_bag_dir),
+        "--model",
+        "lstm",
+        "--out",
+        str(out),
+        "--run-dir",
+        str(precious),
+    ]
+    assert train_main([*args, *TINY, "--force"]) == 2
+    assert "not a sideslip-train run folder" in capsys.readouterr().err
+    assert (precious / "thesis.tex").read_text() == "keep"

@@ -26,11 +26,11 @@ from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError, feature_set
 
 from . import __version__
-from .config import DT_S, WINDOW_STEPS, TrainProfile, profile
+from .config import WINDOW_STEPS, TrainProfile, profile
 from .dataset import DatasetError, Run, data_digest, load_runs, split_runs
 from .export import export_model, load_model
 from .normalize import Normalizer
-from .trainer import EpochRecord, TrainConfig, TrainResult, train_model
+from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
 from .windows import WindowIndex
 
 EXIT_BAD_INPUT = 2
@@ -97,9 +97,14 @@ class ParticleContext:
 
 
 def particle_path(particle_dir: str, params: dict[str, Any]) -> Path:
-    """Where a particle's weights go (a torch state dict: internal to the run folder)."""
-    lr = 10.0 ** float(params["log10_learning_rate"])
-    return Path(particle_dir) / f"lr{lr:.4e}_h{int(params['hidden_units'])}.pt"
+    """Where a particle's weights go (internal to the run folder).
+
+    Named by the exact parameters (full float precision): particles clamped onto the
+    same bound share one file, written atomically; the file also holds the fitness and
+    the training summary of the weights it holds.
+    """
+    lr = float(params["log10_learning_rate"]).hex()
+    return Path(particle_dir) / f"lr{lr}_h{int(params['hidden_units'])}.pt"
 
 
 def particle_fitness(params: dict[str, Any], ctx: ParticleContext) -> float:
@@ -114,7 +119,17 @@ def particle_fitness(params: dict[str, Any], ctx: ParticleContext) -> float:
     )
     result = train_model(cfg, ctx.train, ctx.val, ctx.normalizer)
     # Kept so the final model is the best particle's weights as PSO scored them.
-    torch.save(result.model.state_dict(), particle_path(ctx.particle_dir, params))
+    path = particle_path(ctx.particle_dir, params)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    torch.save(
+        {
+            "state_dict": result.model.state_dict(),
+            "fitness": result.best_val_mae_deg,
+            "summary": {k: v for k, v in result.summary().items()},
+        },
+        tmp,
+    )
+    os.replace(tmp, path)
     return result.best_val_mae_deg
 
 
@@ -131,6 +146,9 @@ def _check_out(args: argparse.Namespace) -> Path:
             raise CliError(f"--resume: no PSO state in {run_dir} (pso_state.json)")
     elif run_dir.exists() and not args.force:
         raise CliError(f"run folder {run_dir} exists; pass --force or --resume")
+    elif run_dir.exists() and any(run_dir.iterdir()) and not (run_dir / "config.json").exists():
+        # --force replaces a run folder, never an unrelated one (--run-dir . ...).
+        raise CliError(f"run folder {run_dir} is not a sideslip-train run folder; not replacing it")
     return run_dir
 
 
@@ -150,18 +168,42 @@ def _check_features(runs: Sequence[Run], features: Sequence[str]) -> None:
 
 
 def _load(args: argparse.Namespace, prof: TrainProfile, features: Sequence[str], log):
-    runs, report = load_runs(args.data)
+    runs, report = load_runs(args.data, channels=tuple(features))
     log(str(report))
     _check_features(runs, features)
     train_runs, val_runs = split_runs(runs, prof.val_fraction, args.seed)
     normalizer = Normalizer.fit(train_runs, tuple(features))
     train = WindowIndex.build(train_runs, tuple(features), normalizer, WINDOW_STEPS, prof.stride)
     val = WindowIndex.build(val_runs, tuple(features), normalizer, WINDOW_STEPS, prof.stride)
+    if len(train.ends) == 0 or len(val.ends) == 0:
+        raise CliError(
+            f"no windows of {WINDOW_STEPS} samples: {len(train.ends)} for training, "
+            f"{len(val.ends)} for validation (bags too short?)"
+        )
     log(
         f"{len(train_runs)} training bag(s), {len(train.ends)} windows; "
         f"{len(val_runs)} validation bag(s), {len(val.ends)} windows (stride {prof.stride})"
     )
     return runs, train_runs, val_runs, normalizer, train, val
+
+
+def sample_period_s(runs: Sequence[Run]) -> float:
+    """The bags' common sample period [s] (median stamp step); mixed rates are refused."""
+    periods = {
+        r.name: float(np.median(np.diff(r.samples.stamp_ns))) * 1e-9
+        for r in runs
+        if len(r.samples) > 1
+    }
+    if not periods:
+        raise CliError("no bag has two samples: no sample period")
+    common = float(np.median(list(periods.values())))
+    odd = [f"{n} ({p * 1e3:.2f} ms)" for n, p in periods.items() if abs(p / common - 1) > 0.02]
+    if odd:
+        raise CliError(
+            f"bags at another rate than {common * 1e3:.2f} ms: {', '.join(odd[:5])}; a model "
+            "sees a fixed step, train on one rate"
+        )
+    return common
 
 
 def _val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) -> dict[str, float]:
@@ -192,24 +234,32 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         features = feature_set(args.features)
         if args.workers < 1:
             raise CliError(f"--workers must be >= 1, got {args.workers}")
+        base = TrainConfig(
+            architecture=args.model,
+            hidden_units=(
+                prof.default_hidden_units if args.hidden_units is None else args.hidden_units
+            ),
+            layers=prof.layers,
+            learning_rate=(
+                prof.default_learning_rate if args.learning_rate is None else args.learning_rate
+            ),
+            max_epochs=prof.max_epochs,
+            patience=prof.patience,
+            batch_size=prof.batch_size,
+            seed=args.seed,
+            device=str(pick_device(args.device)),
+        )
+        if args.ray_address:
+            from .parallel import import_ray
+
+            import_ray()
         run_dir = _check_out(args)
         runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, features, log)
-        _make_run_dir(run_dir, args.resume)
-    except (CliError, DatasetError, FeatureError, ValueError) as err:
+        dt_s = sample_period_s(runs)
+    except (CliError, DatasetError, FeatureError, ImportError, ValueError) as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
-    base = TrainConfig(
-        architecture=args.model,
-        hidden_units=args.hidden_units or prof.default_hidden_units,
-        layers=prof.layers,
-        learning_rate=args.learning_rate or prof.default_learning_rate,
-        max_epochs=prof.max_epochs,
-        patience=prof.patience,
-        batch_size=prof.batch_size,
-        seed=args.seed,
-        device=args.device,
-    )
     config = {
         "command": " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])]),
         "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
@@ -220,15 +270,53 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         "val_bags": [r.name for r in val_runs],
         "data_digest": data_digest(runs),
         "normalizer": normalizer.to_dict(),
+        "sample_period_s": dt_s,
+        "particle_threads": particle_threads(args) if args.pso else None,
         "sideslip_training": __version__,
     }
-    (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str) + "\n")
+    config_path = run_dir / "config.json"
+    if args.resume:
+        # A resumed PSO must continue the same run: same data, split, statistics, model.
+        old = json.loads(config_path.read_text())
+        keys = (
+            "data_digest",
+            "features",
+            "train_bags",
+            "val_bags",
+            "normalizer",
+            "particle_threads",
+        )
+        changed = [
+            k
+            for k in (*keys, "train_config")
+            if old.get(k) != json.loads(json.dumps(config[k], default=str))
+        ]
+        if changed:
+            print(
+                f"sideslip-train: error: --resume: {run_dir} was started with other "
+                f"{', '.join(changed)}; resume with the original command",
+                file=sys.stderr,
+            )
+            return EXIT_BAD_INPUT
+    else:
+        _make_run_dir(run_dir, resume=False)
+        config_path.write_text(json.dumps(config, indent=2, default=str) + "\n")
 
     pso_info = None
     if args.pso:
-        result, pso_info = _run_pso(args, prof, base, train, val, normalizer, run_dir, log)
+        from .pso import PsoError
+
+        try:
+            result, pso_info = _run_pso(args, prof, base, train, val, normalizer, run_dir, log)
+        except PsoError as err:  # e.g. a damaged or foreign pso_state.json on --resume
+            print(f"sideslip-train: error: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     else:
-        result = _train_one(base, train, val, normalizer, args.quiet)
+        try:
+            result = _train_one(base, train, val, normalizer, args.quiet)
+        except ValueError as err:  # diverged: no epoch to export
+            print(f"sideslip-train: error: {err}", file=sys.stderr)
+            return 1
     (run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
 
     metrics = {**_val_metrics(result, val, normalizer), "best_epoch": result.best_epoch}
@@ -238,7 +326,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         layers=result.model.config.layers,
         features=tuple(features),
         window_steps=WINDOW_STEPS,
-        dt_s=DT_S,
+        dt_s=dt_s,
         feature_mean=tuple(float(v) for v in normalizer.mean),
         feature_std=tuple(float(v) for v in normalizer.std),
         beta_mean=float(normalizer.beta_mean),
@@ -289,6 +377,14 @@ def _train_one(
         bar.close()
 
 
+def particle_threads(args: argparse.Namespace) -> int:
+    """Torch threads per particle: a Ray task reserves one CPU; a local pool shares the
+    cores. Recorded in config.json: results depend on it (float summation order)."""
+    if args.ray_address:
+        return 1
+    return max(1, (os.cpu_count() or 1) // args.workers)
+
+
 def _run_pso(args, prof, base, train, val, normalizer, run_dir: Path, log):
     import torch
     from tqdm import tqdm
@@ -301,9 +397,8 @@ def _run_pso(args, prof, base, train, val, normalizer, run_dir: Path, log):
     space = hyperparameter_space(settings)
     particle_dir = run_dir / "particles"
     particle_dir.mkdir(exist_ok=True)
-    cores = os.cpu_count() or 1
     ctx = ParticleContext(
-        train, val, normalizer, base, str(particle_dir), max(1, cores // args.workers)
+        train, val, normalizer, base, str(particle_dir.resolve()), particle_threads(args)
     )
     state_path = run_dir / "pso_state.json"
     state = PsoState.load(state_path) if args.resume else None
@@ -343,15 +438,23 @@ def _run_pso(args, prof, base, train, val, normalizer, run_dir: Path, log):
             base.architecture, len(normalizer.features), int(best["hidden_units"]), base.layers
         )
     )
-    net.load_state_dict(torch.load(particle_path(str(particle_dir), best), weights_only=True))
+    saved = torch.load(particle_path(str(particle_dir), best), weights_only=True)
+    net.load_state_dict(saved["state_dict"])
     net.eval()
     cfg = replace(
         base,
         learning_rate=10.0 ** float(best["log10_learning_rate"]),
         hidden_units=int(best["hidden_units"]),
     )
+    summary = saved["summary"]
     tr = TrainResult(
-        model=net, best_epoch=0, best_val_mae_deg=result.best_fitness, device=base.device
+        model=net,
+        best_epoch=int(summary["best_epoch"]),
+        best_val_mae_deg=float(saved["fitness"]),
+        history=[EpochRecord(**r) for r in summary["history"]],
+        seconds=float(summary["seconds"]),
+        device=str(summary["device"]),
+        stopped_early=bool(summary["stopped_early"]),
     )
     info = {
         "best_learning_rate": cfg.learning_rate,
@@ -425,6 +528,13 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             raise CliError(f"models have different window lengths: {sorted(windows)}")
         runs, report = load_runs(args.data)
         print(str(report), file=sys.stderr)
+        window = next(iter(windows))
+        short = [r.name for r in runs if len(r.samples) < window]
+        if short:
+            print(f"skipped (shorter than {window} samples): {', '.join(short)}", file=sys.stderr)
+            runs = [r for r in runs if len(r.samples) >= window]
+        if not runs:
+            raise CliError(f"no run of {args.data} holds a full window of {window} samples")
     except (CliError, ArtifactError, DatasetError, OSError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -167,6 +167,11 @@ def train_model(
             if since_best >= cfg.patience:
                 result.stopped_early = True
                 break
+    if result.best_epoch == 0:
+        raise ValueError(
+            f"no epoch with a finite validation MAE (lr {cfg.learning_rate:g}, "
+            f"{cfg.hidden_units} units): training diverged"
+        )
     model.load_state_dict(best_state)
     result.model = model.cpu().eval()
     result.seconds = time.perf_counter() - started

@@ -1,0 +1,85 @@
+"""The trainer: seeded determinism, early stopping keeps the best epoch, and metrics."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from sideslip_msgs_py.features import feature_set
+from sideslip_training.config import WINDOW_STEPS
+from sideslip_training.dataset import load_runs, split_runs
+from sideslip_training.evaluate import metrics_deg
+from sideslip_training.normalize import Normalizer
+from sideslip_training.trainer import TrainConfig, train_model
+from sideslip_training.windows import WindowIndex
+
+
+@pytest.fixture(scope="module")
+def data(sim_bag_dir: Path):
+    torch.set_num_threads(1)
+    features = feature_set("paper")
+    runs, _ = load_runs([sim_bag_dir])
+    train_runs, val_runs = split_runs(runs, 0.25, 0)
+    norm = Normalizer.fit(train_runs, features)
+    train = WindowIndex.build(train_runs, features, norm, WINDOW_STEPS, 5)
+    val = WindowIndex.build(val_runs, features, norm, WINDOW_STEPS, 5)
+    return train, val, norm
+
+
+def _cfg(**changes) -> TrainConfig:
+    base = {"hidden_units": 8, "max_epochs": 3, "patience": 5, "batch_size": 32, "device": "cpu"}
+    return TrainConfig(**(base | changes))
+
+
+def test_same_seed_gives_the_same_weights_bit_for_bit_on_cpu(data):
+    a = train_model(_cfg(seed=7), *data)
+    b = train_model(_cfg(seed=7), *data)
+    c = train_model(_cfg(seed=8), *data)
+    for (name, wa), wb in zip(
+        a.model.state_dict().items(), b.model.state_dict().values(), strict=True
+    ):
+        assert torch.equal(wa, wb), name
+    assert any(
+        not torch.equal(wa, wc)
+        for wa, wc in zip(a.model.state_dict().values(), c.model.state_dict().values(), strict=True)
+    )
+    assert [r.val_mae_deg for r in a.history] == [r.val_mae_deg for r in b.history]
+
+
+def test_early_stopping_keeps_the_best_epoch_weights(data):
+    # A learning rate this high makes validation worse after a while: patience 1 stops
+    # the run, and the weights returned must be the best epoch's, not the last one's.
+    result = train_model(_cfg(learning_rate=0.3, max_epochs=12, patience=1, seed=1), *data)
+    best = min(r.val_mae_deg for r in result.history)
+    assert result.best_val_mae_deg == best
+    assert result.history[result.best_epoch - 1].val_mae_deg == best
+    from sideslip_training.trainer import mae_deg
+
+    _train, val, norm = data
+    again = mae_deg(
+        result.model, val.to_torch(torch.device("cpu")), norm, torch.device("cpu"), len(val.ends)
+    )
+    assert again == pytest.approx(best, rel=1e-6)
+
+
+def test_a_run_that_never_yields_a_finite_epoch_is_an_error(data):
+    with pytest.raises(ValueError, match="no epoch"):
+        train_model(_cfg(learning_rate=1e30, max_epochs=2, seed=0), *data)
+
+
+def test_metric_formulas_in_degrees():
+    ref = np.radians([1.0, 2.0, 3.0, 4.0])
+    est = np.radians([1.5, 2.0, 2.5, 5.0])
+    m = metrics_deg(est, ref)
+    err = np.array([0.5, 0.0, -0.5, 1.0])
+    assert m.mae == pytest.approx(np.mean(np.abs(err)))
+    assert m.me == pytest.approx(np.mean(err))
+    assert m.rmse == pytest.approx(math.sqrt(np.mean(err**2)))
+    assert m.r2 == pytest.approx(1 - np.sum(err**2) / np.sum((np.degrees(ref) - 2.5) ** 2))
+    assert m.n == 4
+    perfect = metrics_deg(ref, ref)
+    assert perfect.mae == 0 and perfect.r2 == 1.0
