@@ -272,9 +272,9 @@ def test_flood_drops_oldest_reports_it_and_keeps_latency_bounded(estimator):
         )
 
     wait_for(caught_up, 5, "an estimate for (nearly) the last flooded sample")
-    received = [r for r in twist if r.recv_ns >= sent_done]
-    assert received, "some estimates arrive only after the flood"
-    assert (received[-1].recv_ns - sent_done) < 1.0e9
+    # The newest estimate arrives at most a second after the last message was sent
+    # (before it, when the node kept up): no backlog of thousands of messages.
+    assert twist[-1].recv_ns - sent_done < 1.0e9
     assert_outputs_finite(beta, twist)
     assert child.proc.poll() is None
 
