@@ -166,9 +166,15 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
         out.write(
             f"| mean | {name} | {np.mean([m.mae for m in ms]):.3f} | "
             f"{np.mean([m.me for m in ms]):+.3f} | {np.mean([m.rmse for m in ms]):.3f} | "
-            f"{np.mean([m.r2 for m in ms]):.3f} |\n"
+            f"{_mean_r2(ms)} |\n"
         )
     return out.getvalue()
+
+
+def _mean_r2(ms: Sequence[Metrics]) -> str:
+    """R² is undefined on a run whose β is constant (straight driving): left out."""
+    r2 = [m.r2 for m in ms if math.isfinite(m.r2)]
+    return f"{np.mean(r2):.3f}" if r2 else "n/a"
 
 
 def table_csv(traces: Sequence[Trace]) -> str:
