@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 import torch
 
-from sideslip_msgs_py.artifact import ModelMetadata
+from sideslip_msgs_py.artifact import ModelMetadata, zscore
 from sideslip_msgs_py.features import FEATURE_SETS, channel_indices
 
 from .dataset import Run
@@ -84,17 +84,19 @@ def predict_run(model: SideslipNet, meta: ModelMetadata, run: Run) -> FloatArray
     """β̂ [rad] for every sample with a full window, i.e. samples[window-1:]."""
     s = run.samples
     channel_indices(meta.features)  # refuses a feature that is not a contract channel
-    x = np.stack([getattr(s, c) for c in meta.features], axis=1)
-    x = (x - np.asarray(meta.feature_mean)) / np.asarray(meta.feature_std)
+    # The contract's z-score (float64, rounded once to float32), as the estimator does.
+    x = zscore(
+        np.stack([getattr(s, c) for c in meta.features], axis=1),
+        meta.feature_mean,
+        meta.feature_std,
+    )
     w = meta.window_steps
     windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (N, F, w)
     out = np.empty(windows.shape[0])
     model.eval()
     with torch.inference_mode():
         for start in range(0, windows.shape[0], PREDICT_BATCH):
-            chunk = np.ascontiguousarray(
-                windows[start : start + PREDICT_BATCH].transpose(0, 2, 1), dtype=np.float32
-            )
+            chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
     return out * meta.beta_std + meta.beta_mean
 
