@@ -27,19 +27,16 @@ from sideslip_estimator.parameters import PARAMETERS, estimator_params
 from sideslip_estimator.status import Observation, assess
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.errors import MessageFieldError
-from sideslip_msgs_py.messages import (
-    RclpyMessages,
-    fill_sideslip_twist,
-    imu_fields,
-    sideslip_message,
-    sideslip_twist_message,
-    status_message,
-    steering_fields,
-    twist_fields,
-)
+from sideslip_msgs_py.messages import RclpyMessages, imu_fields, steering_fields, twist_fields
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
 from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
+from sideslip_msgs_py.outputs import (
+    fill_sideslip_twist,
+    sideslip_message,
+    sideslip_twist_message,
+    status_message,
+)
 from sideslip_msgs_py.parameters import help_text
 
 NODE_NAME = "sideslip_estimator"

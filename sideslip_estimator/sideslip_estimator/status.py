@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sideslip_msgs_py.messages import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
+from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 from .estimator import EstimatorStats
 

@@ -36,7 +36,6 @@ trusting a fake zero.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final, NamedTuple, Protocol
@@ -189,12 +188,12 @@ def header(factory: MessageFactory, stamp_ns: int, frame_id: str = topics.BASE_F
     return factory.Header(stamp=factory.Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
 
 
-def _vector3(factory: MessageFactory, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
+def vector3(factory: MessageFactory, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
     return factory.Vector3(x=float(x), y=float(y), z=float(z))
 
 
 def _twist_stamped(factory: MessageFactory, hdr: Any, v_x: float, v_y: float, r: float) -> Any:
-    twist = factory.Twist(linear=_vector3(factory, v_x, v_y), angular=_vector3(factory, z=r))
+    twist = factory.Twist(linear=vector3(factory, v_x, v_y), angular=vector3(factory, z=r))
     return factory.TwistStamped(header=hdr, twist=twist)
 
 
@@ -217,9 +216,9 @@ def sample_to_messages(
             header=hdr,
             orientation=factory.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
             orientation_covariance=cov.orientation.copy(),
-            angular_velocity=_vector3(factory, z=sample.yaw_rate_radps),
+            angular_velocity=vector3(factory, z=sample.yaw_rate_radps),
             angular_velocity_covariance=cov.angular_velocity.copy(),
-            linear_acceleration=_vector3(factory, sample.x_a_mps2, sample.y_a_mps2),
+            linear_acceleration=vector3(factory, sample.x_a_mps2, sample.y_a_mps2),
             linear_acceleration_covariance=cov.linear_acceleration.copy(),
         ),
         topics.TWIST: _twist_stamped(factory, hdr, sample.x_v_mps, sample.y_v_mps, 0.0),
@@ -239,113 +238,6 @@ def sample_to_messages(
         )
         out[topics.GROUND_TRUTH_SIDESLIP] = factory.Float64(data=t.beta_rad)
     return out
-
-
-# --- estimator outputs and clock ---------------------------------------------------------------
-
-DIAGNOSTIC_OK: Final = 0
-DIAGNOSTIC_WARN: Final = 1
-DIAGNOSTIC_ERROR: Final = 2
-DIAGNOSTIC_STALE: Final = 3
-"""diagnostic_msgs/DiagnosticStatus levels."""
-
-
-def sideslip_message(factory: MessageFactory, beta_rad: float) -> Any:
-    """``/sideslip``: std_msgs/Float64 with the estimated β [rad]."""
-    return factory.Float64(data=float(beta_rad))
-
-
-def sideslip_twist_message(
-    factory: MessageFactory,
-    stamp_ns: int,
-    v_x_mps: float,
-    beta_rad: float,
-    beta_variance_rad2: float,
-    v_x_variance_m2ps2: float,
-) -> Any:
-    """``/sideslip/twist``: v_x and v_y = v_x·tan β̂ with covariance, stamped with the input.
-
-    See :func:`fill_sideslip_twist` for the fields; this builds a new message.
-    """
-    msg = factory.TwistWithCovarianceStamped(
-        header=header(factory, 0),
-        twist=factory.TwistWithCovariance(
-            twist=factory.Twist(linear=_vector3(factory), angular=_vector3(factory)),
-            covariance=np.zeros(36),
-        ),
-    )
-    return fill_sideslip_twist(
-        msg, stamp_ns, v_x_mps, beta_rad, beta_variance_rad2, v_x_variance_m2ps2
-    )
-
-
-def fill_sideslip_twist(
-    msg: Any,
-    stamp_ns: int,
-    v_x_mps: float,
-    beta_rad: float,
-    beta_variance_rad2: float,
-    v_x_variance_m2ps2: float,
-) -> Any:
-    """Write one estimate into a TwistWithCovarianceStamped (either back-end) and return it.
-
-    A node reuses one message: building the nested message anew costs ~50 µs in rclpy,
-    a fifth of the estimator's budget per 400-Hz sample.
-
-    Fields: ``header.stamp`` = the input sample's stamp, ``frame_id`` = base_link;
-    linear.x = v_x, linear.y = v_x·tan β̂, everything else 0. Covariance (row-major 6×6
-    over x, y, z, roll, pitch, yaw of the twist): var(v_x) as given; var(v_y) by
-    first-order propagation of v_y = v_x tan β, (v_x sec²β)²·var(β) + tan²β·var(v_x);
-    cov(v_x, v_y) = tan β·var(v_x). The four components the estimator does not provide
-    (v_z and the angular rates) carry :data:`UNMEASURED_VARIANCE`, so robot_localization
-    gives them no weight.
-    """
-    sec, nanosec = stamp_to_sec_nanosec(stamp_ns)
-    msg.header.stamp.sec = sec
-    msg.header.stamp.nanosec = nanosec
-    msg.header.frame_id = topics.BASE_FRAME
-    tan_b = math.tan(beta_rad)
-    sec2 = 1.0 + tan_b * tan_b
-    twist = msg.twist.twist
-    twist.linear.x = float(v_x_mps)
-    twist.linear.y = float(v_x_mps * tan_b)
-    cov = np.zeros(36)
-    cov[0] = v_x_variance_m2ps2
-    cov[1] = cov[6] = tan_b * v_x_variance_m2ps2
-    cov[7] = (v_x_mps * sec2) ** 2 * beta_variance_rad2 + tan_b * tan_b * v_x_variance_m2ps2
-    cov[14] = cov[21] = cov[28] = cov[35] = UNMEASURED_VARIANCE
-    msg.twist.covariance = cov
-    return msg
-
-
-def status_message(
-    factory: MessageFactory,
-    stamp_ns: int,
-    *,
-    level: int,
-    name: str,
-    message: str,
-    hardware_id: str,
-    values: Mapping[str, object],
-) -> Any:
-    """``/sideslip/status``: a DiagnosticArray holding one DiagnosticStatus.
-
-    ``values`` become KeyValue pairs (``str()`` of each value, in the given order).
-    """
-    status = factory.DiagnosticStatus(
-        level=factory.diagnostic_level(level),
-        name=name,
-        message=message,
-        hardware_id=hardware_id,
-        values=[factory.KeyValue(key=str(k), value=str(v)) for k, v in values.items()],
-    )
-    return factory.DiagnosticArray(header=header(factory, stamp_ns, frame_id=""), status=[status])
-
-
-def clock_message(factory: MessageFactory, stamp_ns: int) -> Any:
-    """``/clock``: rosgraph_msgs/Clock holding the simulated time [ns]."""
-    sec, nanosec = stamp_to_sec_nanosec(stamp_ns)
-    return factory.Clock(clock=factory.Time(sec=sec, nanosec=nanosec))
 
 
 # --- messages -> fields ------------------------------------------------------------------------

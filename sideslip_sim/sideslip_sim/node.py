@@ -20,10 +20,11 @@ import numpy as np
 import rclpy.node
 
 from sideslip_msgs_py import topics
-from sideslip_msgs_py.messages import RclpyMessages, clock_message
+from sideslip_msgs_py.messages import RclpyMessages
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
 from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
+from sideslip_msgs_py.outputs import clock_message
 from sideslip_msgs_py.parameters import ParameterSpec, help_text
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim.maneuvers import ManeuverError

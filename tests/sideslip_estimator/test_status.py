@@ -10,7 +10,7 @@ import pytest
 
 from sideslip_estimator.estimator import EstimatorStats
 from sideslip_estimator.status import LEVEL_NAMES, Observation, Status, assess
-from sideslip_msgs_py.messages import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
+from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 TOPICS = ("/vehicle/imu", "/vehicle/twist", "/vehicle/steering")
 

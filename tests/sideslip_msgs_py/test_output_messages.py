@@ -14,19 +14,21 @@ from hypothesis import strategies as st
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.errors import MessageFieldError
 from sideslip_msgs_py.messages import (
-    DIAGNOSTIC_ERROR,
-    DIAGNOSTIC_OK,
-    DIAGNOSTIC_STALE,
-    DIAGNOSTIC_WARN,
     NS_PER_S,
     UNMEASURED_VARIANCE,
     RclpyMessages,
     TypestoreMessages,
+    stamp_ns,
+    stamp_to_sec_nanosec,
+)
+from sideslip_msgs_py.outputs import (
+    DIAGNOSTIC_ERROR,
+    DIAGNOSTIC_OK,
+    DIAGNOSTIC_STALE,
+    DIAGNOSTIC_WARN,
     clock_message,
     sideslip_message,
     sideslip_twist_message,
-    stamp_ns,
-    stamp_to_sec_nanosec,
     status_message,
 )
 
