@@ -30,7 +30,7 @@ from pathlib import Path
 
 from machine import cpu_model, git_commit
 
-from sideslip_sim.generate import generate, prepare_output
+from sideslip_sim.generate import generate, prepare_output, single_vehicle
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import paper_train
 from sideslip_sim.simulate import DT_S, Stepper, simulate
@@ -113,8 +113,7 @@ def bench_generate_paper_train(vehicle, jobs: int) -> dict[str, float]:
         prepare_output(out, force=False)
         started = time.perf_counter()
         summaries = generate(
-            vehicle,
-            runs,
+            single_vehicle(vehicle, runs),
             out,
             noise="paper",
             seed=0,
@@ -167,8 +166,7 @@ def bench_training() -> dict[str, object]:
         out = Path(tmp) / "train"
         out.mkdir()
         generate(
-            load_vehicle("paper_sedan"),
-            paper_train(),
+            single_vehicle(load_vehicle("paper_sedan"), paper_train()),
             out,
             preset_name="paper-train",
             progress=False,

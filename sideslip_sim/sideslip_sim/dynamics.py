@@ -117,7 +117,10 @@ P_STL_RATIO = 31  # STL per mean road-wheel angle [m/rad]
 P_ACKERMANN = 32  # Ackermann fraction [-]
 P_MAX_DELTA = 33  # steering lock [rad]
 P_FRR = 34  # rolling-resistance coefficient [-]
-N_PARAM = 35
+P_ROLL_STEER_F = 35  # road-wheel angle per roll angle, > 0 roll understeer [rad/rad]
+P_ROLL_STEER_R = 36
+P_AXLE_TIRES = 37  # 1 when the axles' tyre coefficients differ (tc rows 0 and 1), else 0
+N_PARAM = 38
 
 # Slip-velocity floor in the relaxation equations [m/s]: a standing tyre still relaxes
 # (decays) its deflection instead of acting as an undamped spring; a floor (not an
@@ -127,8 +130,12 @@ _V_RELAX_FLOOR = 0.1
 _OMEGA_RR_SCALE = 1.0
 
 
-def pack_params(vehicle: VehicleParams, tire: TireParams) -> np.ndarray:
-    """Pack a vehicle (and the tyre's vertical/rolling properties) for the compiled model."""
+def pack_params(vehicle: VehicleParams, tire: TireParams, axle_tires_differ: bool) -> np.ndarray:
+    """Pack a vehicle (and the tyre's vertical/rolling properties) for the compiled model.
+
+    axle_tires_differ: the front and rear rows of the tyre-coefficient array differ (the
+    model then evaluates the force kernel once per axle instead of once per car).
+    """
     p = np.zeros(N_PARAM)
     L = vehicle.wheelbase_m
     p[P_M] = vehicle.mass_kg
@@ -170,6 +177,9 @@ def pack_params(vehicle: VehicleParams, tire: TireParams) -> np.ndarray:
     p[P_ACKERMANN] = vehicle.ackermann_fraction
     p[P_MAX_DELTA] = vehicle.max_road_wheel_angle_rad
     p[P_FRR] = rolling_resistance_coefficient(tire.coefficients())
+    p[P_ROLL_STEER_F] = vehicle.roll_steer_front_rad_per_rad
+    p[P_ROLL_STEER_R] = vehicle.roll_steer_rear_rad_per_rad
+    p[P_AXLE_TIRES] = 1.0 if axle_tires_differ else 0.0
     return p
 
 
@@ -177,8 +187,12 @@ N_STEER = 12  # steer array: angles δ_i, then cos δ_i, then sin δ_i (held ove
 
 
 @njit(cache=True, error_model="numpy")
-def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
+def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray, roll_rad: float = 0.0) -> float:
     """Road-wheel angles from STL into out (N_STEER: δ_i, cos δ_i, sin δ_i); returns δ.
+
+    Roll steer adds −ε_f·φ to both front wheels and +ε_r·φ to both rear wheels (φ > 0
+    in a left turn, so ε > 0 steers the front out of the turn and the rear into it:
+    roll understeer). The returned mean δ is the steering's alone, without roll steer.
 
     δ = STL / ratio, clamped to the lock. With full Ackermann the inner wheel steers more,
     so that both front axles point at one turn centre on the rear-axle line:
@@ -198,10 +212,12 @@ def road_wheel_angles(stl_m: float, p: np.ndarray, out: np.ndarray) -> float:
     d_left = math.atan(wheelbase * t / (wheelbase - half_track * t))
     d_right = math.atan(wheelbase * t / (wheelbase + half_track * t))
     ack = p[P_ACKERMANN]
-    out[0] = ack * d_left + (1.0 - ack) * delta
-    out[1] = ack * d_right + (1.0 - ack) * delta
-    out[2] = 0.0
-    out[3] = 0.0
+    front_roll = -p[P_ROLL_STEER_F] * roll_rad
+    rear_roll = p[P_ROLL_STEER_R] * roll_rad
+    out[0] = ack * d_left + (1.0 - ack) * delta + front_roll
+    out[1] = ack * d_right + (1.0 - ack) * delta + front_roll
+    out[2] = rear_roll
+    out[3] = rear_roll
     for i in range(4):
         out[4 + i] = math.cos(out[i])
         out[8 + i] = math.sin(out[i])
@@ -221,6 +237,7 @@ def rhs(
 ) -> None:
     """Time derivative dx of the state x for held inputs.
 
+    tc: tyre coefficients, shape (2, n): row 0 the front axle's, row 1 the rear's;
     steer: road-wheel angles per corner with their cosines and sines (see
     road_wheel_angles); aux doubles as scratch for the per-corner forces;
     wheel_torque: drive torque per wheel [N m];
@@ -290,14 +307,24 @@ def rhs(
         vcx = vx * cd + vy * sd
         vcy = -vx * sd + vy * cd
 
-        sigma_kappa, sigma_alpha = relaxation_lengths(tc, fz_i)
+        sigma_kappa, sigma_alpha = relaxation_lengths(tc[0] if front else tc[1], fz_i)
         speed = max(abs(vcx), _V_RELAX_FLOOR)
         dx[S_TANA + i] = (-vcy - speed * x[S_TANA + i]) / sigma_alpha
         dx[S_KAPPA + i] = (x[S_OMEGA + i] * rw - vcx - speed * x[S_KAPPA + i]) / sigma_kappa
 
     fxw_all = aux[A_FXW : A_FXW + 4]
     fyw_all = aux[A_FYW : A_FYW + 4]
-    combined_forces4(tc, fz, x[S_KAPPA : S_KAPPA + 4], x[S_TANA : S_TANA + 4], mu, fxw_all, fyw_all)
+    kappa = x[S_KAPPA : S_KAPPA + 4]
+    tan_alpha = x[S_TANA : S_TANA + 4]
+    if p[P_AXLE_TIRES] != 0.0:
+        # Other tyres on each axle: the rear tyre's forces first, kept for corners 2-3,
+        # then the front tyre's for corners 0-1 (two kernel calls instead of one).
+        combined_forces4(tc[1], fz, kappa, tan_alpha, mu, fxw_all, fyw_all)
+        fx_rl, fx_rr, fy_rl, fy_rr = fxw_all[2], fxw_all[3], fyw_all[2], fyw_all[3]
+        combined_forces4(tc[0], fz, kappa, tan_alpha, mu, fxw_all, fyw_all)
+        fxw_all[2], fxw_all[3], fyw_all[2], fyw_all[3] = fx_rl, fx_rr, fy_rl, fy_rr
+    else:
+        combined_forces4(tc[0], fz, kappa, tan_alpha, mu, fxw_all, fyw_all)
 
     for i in range(4):
         front = i < 2

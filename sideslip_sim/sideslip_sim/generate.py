@@ -28,10 +28,20 @@ from tqdm import tqdm
 from sideslip_msgs_py.bag import write_bag
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim import __version__
+from sideslip_sim.fleet import plausibility, vehicle_digest
+from sideslip_sim.held_out import is_held_out
 from sideslip_sim.maneuvers import Maneuver, ManeuverError
-from sideslip_sim.presets import PRESETS, PresetError, preset
+from sideslip_sim.presets import (
+    PRESETS,
+    TRAINING_PRESETS,
+    VEHICLE_PRESETS,
+    PresetError,
+    VehicleRun,
+    preset,
+    vehicle_preset,
+)
 from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
-from sideslip_sim.simulate import DT_S, SimulationError, load_tire, simulate
+from sideslip_sim.simulate import DT_S, SimResult, SimulationError, load_tire, simulate
 from sideslip_sim.tir import TirError
 from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
 
@@ -55,6 +65,7 @@ class RunSummary:
 
     name: str
     family: str
+    vehicle: str
     bag: str
     samples: int
     duration_s: float
@@ -66,11 +77,20 @@ class RunSummary:
     speed_min_kmh: float
     mu: float
     spun: bool
+    spin_onset_s: float | None
     sim_wall_s: float
 
 
 def _file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def spin_onset_s(result: SimResult) -> float | None:
+    """Time [s] of the first sample where the run spun (see SPIN_BETA_DEG), or None."""
+    spinning = (np.abs(np.degrees(result.beta_rad)) > SPIN_BETA_DEG) & (
+        result.u_mps > SPIN_MIN_SPEED_MPS
+    )
+    return float(result.t_s[np.argmax(spinning)]) if spinning.any() else None
 
 
 def run_metadata(
@@ -80,14 +100,21 @@ def run_metadata(
     sigma: SensorNoiseSigma,
     seed: int,
     preset_name: str,
+    spin_onset: float | None = None,
 ) -> dict[str, object]:
-    """Everything needed to regenerate the bag bit for bit, stored inside it."""
+    """Everything needed to regenerate the bag bit for bit, stored inside it, with the
+    car's parameter digest and plausibility figures and the run's spin onset (or None):
+    a run that spun is kept, and training decides what to do with it."""
     tire_path = vehicle.tire_path()
+    tire = load_tire(str(tire_path))
     return {
         "generator": f"sideslip_sim {__version__}",
         "preset": preset_name,
         "maneuver": maneuver.to_dict(),
         "vehicle": {k: v for k, v in dataclasses.asdict(vehicle).items() if k != "source_path"},
+        "vehicle_digest": vehicle_digest(vehicle),
+        "vehicle_checks": dataclasses.asdict(plausibility(vehicle, tire)),
+        "spin_onset_s": spin_onset,
         "tire_file": tire_path.name,
         "tire_sha256": _file_digest(tire_path),
         "noise_profile": noise,
@@ -116,16 +143,18 @@ def generate_run(
     exact = exact_samples(result)
     samples = add_noise(exact, sigma, run_seed(seed, maneuver.name))
     bag = out_dir / maneuver.name
+    onset = spin_onset_s(result)
     write_bag(
         bag,
         samples,
         sigma=sigma,
-        run_metadata=run_metadata(vehicle, maneuver, noise, sigma, seed, preset_name),
+        run_metadata=run_metadata(vehicle, maneuver, noise, sigma, seed, preset_name, onset),
     )
     speed_kmh = result.u_mps * 3.6
     return RunSummary(
         name=maneuver.name,
         family=maneuver.scenario or maneuver.family,
+        vehicle=vehicle.name,
         bag=bag.name,
         samples=len(result),
         duration_s=maneuver.duration_s,
@@ -136,12 +165,8 @@ def generate_run(
         speed_end_kmh=float(speed_kmh[-1]),
         speed_min_kmh=float(np.min(speed_kmh)),
         mu=maneuver.mu,
-        spun=bool(
-            np.any(
-                (np.abs(np.degrees(result.beta_rad)) > SPIN_BETA_DEG)
-                & (result.u_mps > SPIN_MIN_SPEED_MPS)
-            )
-        ),
+        spun=onset is not None,
+        spin_onset_s=onset,
         sim_wall_s=sim_wall,
     )
 
@@ -169,9 +194,13 @@ def _warm_up(vehicle: VehicleParams) -> None:
     simulate(vehicle, Maneuver("warm_up", "straight", 0.01, 10.0, 0.0))
 
 
+def single_vehicle(vehicle: VehicleParams, maneuvers: Sequence[Maneuver]) -> list[VehicleRun]:
+    """The runs of a one-car preset: every manoeuvre on the same vehicle."""
+    return [VehicleRun(vehicle, m) for m in maneuvers]
+
+
 def generate(
-    vehicle: VehicleParams,
-    maneuvers: Sequence[Maneuver],
+    runs: Sequence[VehicleRun],
     out_dir: Path,
     *,
     noise: str = "paper",
@@ -181,34 +210,37 @@ def generate(
     progress: bool = True,
     on_done: Callable[[RunSummary], None] | None = None,
 ) -> list[RunSummary]:
-    """Generate one bag per manoeuvre into out_dir (which must be prepared) and an index."""
+    """Generate one bag per run into out_dir (which must be prepared) and an index."""
     noise_profile(noise)  # validate before any work
-    names = [m.name for m in maneuvers]
+    names = [r.maneuver.name for r in runs]
     if len(set(names)) != len(names):
         raise ManeuverError("manoeuvre names must be unique: each names its bag")
-    _warm_up(vehicle)
+    if not runs:
+        raise ManeuverError("no runs to generate")
+    _warm_up(runs[0].vehicle)
     summaries: list[RunSummary] = []
     kwargs = {"noise": noise, "seed": seed, "preset_name": preset_name}
-    bar = tqdm(
-        total=len(maneuvers), unit="run", desc="generate", disable=not progress, file=sys.stderr
-    )
+    bar = tqdm(total=len(runs), unit="run", desc="generate", disable=not progress, file=sys.stderr)
     if jobs <= 1:
-        for m in maneuvers:
-            summaries.append(generate_run(vehicle, m, out_dir, **kwargs))
+        for r in runs:
+            summaries.append(generate_run(r.vehicle, r.maneuver, out_dir, **kwargs))
             bar.update(1)
     else:
         ctx = multiprocessing.get_context("fork")
         with futures.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-            pending = [pool.submit(generate_run, vehicle, m, out_dir, **kwargs) for m in maneuvers]
+            pending = [
+                pool.submit(generate_run, r.vehicle, r.maneuver, out_dir, **kwargs) for r in runs
+            ]
             for fut in futures.as_completed(pending):
                 summaries.append(fut.result())
                 bar.update(1)
     bar.close()
     order = {name: i for i, name in enumerate(names)}
     summaries.sort(key=lambda s: order[s.name])
+    vehicles = sorted({r.vehicle.name for r in runs})
     index = {
         "preset": preset_name,
-        "vehicle": vehicle.name,
+        "vehicle": vehicles[0] if len(vehicles) == 1 else vehicles,
         "noise": noise,
         "seed": seed,
         "runs": [dataclasses.asdict(s) for s in summaries],
@@ -257,21 +289,29 @@ def build_parser() -> argparse.ArgumentParser:
             "plus index.json with a summary of every run."
         ),
         epilog=(
-            "presets: paper-train (Table 3 grid), paper-test (Table 4 scenarios), "
-            "randomized (seeded draws; see --count). Example: sideslip-generate --preset "
-            "paper-test --out data/paper-test --noise paper"
+            "presets on one car (--vehicle): paper-train (Table 3 grid), paper-test "
+            "(Table 4 scenarios), randomized (seeded draws; see --count). Presets whose runs "
+            "each have their own car: fleet (--count runs, four per car drawn by the seeded "
+            "fleet sampler, μ 0.3-1.0), held-out (the six held-out cars at μ 1.0/0.7/0.4: "
+            "for evaluation only). Training presets refuse a held-out car. Example: "
+            "sideslip-generate --preset paper-test --out data/paper-test --noise paper"
         ),
     )
-    parser.add_argument("--preset", required=True, help=f"one of: {', '.join(PRESETS)}")
+    parser.add_argument(
+        "--preset", required=True, help=f"one of: {', '.join((*PRESETS, *VEHICLE_PRESETS))}"
+    )
     parser.add_argument("--out", required=True, type=Path, help="output directory for the bags")
     parser.add_argument("--noise", default="paper", help="sensor noise profile: paper | none")
     parser.add_argument("--seed", type=int, default=0, help="base seed (noise, random draws)")
     parser.add_argument(
         "--vehicle",
-        default="paper_sedan",
-        help="shipped vehicle name or path to a vehicle YAML (default paper_sedan)",
+        default=None,
+        help="shipped vehicle name or path to a vehicle YAML (default paper_sedan); not "
+        "for fleet and held-out, whose runs name their own cars",
     )
-    parser.add_argument("--count", type=int, default=100, help="runs for the randomized preset")
+    parser.add_argument(
+        "--count", type=int, default=100, help="runs of the randomized and fleet presets"
+    )
     parser.add_argument(
         "--jobs",
         type=int,
@@ -287,13 +327,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _preset_runs(args: argparse.Namespace) -> list[VehicleRun]:
+    """The runs the command line asks for; a held-out car in a training preset is an
+    error (the held-out benchmark must stay unseen)."""
+    if args.preset in VEHICLE_PRESETS:
+        if args.vehicle is not None:
+            raise PresetError(f"--vehicle does not apply to --preset {args.preset}: its runs "
+                              "name their own cars")  # fmt: skip
+        return vehicle_preset(args.preset, seed=args.seed, count=args.count)
+    maneuvers = preset(args.preset, seed=args.seed, count=args.count)
+    vehicle = load_vehicle(args.vehicle or "paper_sedan")
+    load_tire(str(vehicle.tire_path()))  # a bad tyre file is refused before any work
+    if args.preset in TRAINING_PRESETS and is_held_out(vehicle):
+        raise PresetError(
+            f"--vehicle {args.vehicle} is a held-out car: the training preset "
+            f"{args.preset} must never contain it (use --preset held-out to evaluate)"
+        )
+    return single_vehicle(vehicle, maneuvers)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         noise_profile(args.noise)
-        maneuvers = preset(args.preset, seed=args.seed, count=args.count)
-        vehicle = load_vehicle(args.vehicle)
-        load_tire(str(vehicle.tire_path()))  # a bad tyre file is refused before any work
+        runs = _preset_runs(args)
         if args.jobs < 1:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         prepare_output(args.out, force=args.force)
@@ -303,8 +360,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     started = time.perf_counter()
     try:
         summaries = generate(
-            vehicle,
-            maneuvers,
+            runs,
             args.out,
             noise=args.noise,
             seed=args.seed,

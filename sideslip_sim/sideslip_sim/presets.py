@@ -12,15 +12,28 @@ paper-test: the four scenarios of Table 4, with seeds disjoint from training.
 randomized: `count` runs drawn from a seeded generator: family, initial speed
 20-120 km/h, road μ 0.3-1.0, drive torque 0-600·μ N m, steering severity 0.2-0.9 of the
 μ-limited lateral acceleration, payload 0-300 kg, duration 6-15 s.
+
+Multi-vehicle presets (`vehicle_preset`), each run with its own car:
+
+fleet: `count` runs on cars of the fleet sampler (`sideslip_sim.fleet`), four per car.
+
+held-out: the held-out benchmark (`sideslip_sim.held_out`): never for training.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from sideslip_sim.maneuvers import Maneuver
+from sideslip_sim.fleet import sample_fleet
+from sideslip_sim.held_out import HELD_OUT_MU, held_out_digests, held_out_vehicles
+from sideslip_sim.maneuvers import Maneuver, auto_stl_amplitude
+from sideslip_sim.simulate import load_tire
+from sideslip_sim.single_track import SingleTrack
+from sideslip_sim.vehicle import VehicleParams
 
 PRESETS = ("paper-train", "paper-test", "randomized")
 
@@ -163,3 +176,117 @@ def preset(name: str, *, seed: int = 0, count: int = 100) -> list[Maneuver]:
     if name == "randomized":
         return randomized(count, seed)
     raise PresetError(f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
+
+
+# ---- presets whose runs each name their own car -------------------------------------
+
+VEHICLE_PRESETS = ("fleet", "held-out")
+# Training presets of the one-car kind: they refuse a held-out car as --vehicle.
+TRAINING_PRESETS = ("paper-train", "randomized", "fleet")
+FLEET_RUNS_PER_CAR = 4
+_FLEET_FAMILIES = (
+    "double_lane_change",
+    "sine_steer",
+    "sweep_steer",
+    "cornering",
+    "random_steer",
+    "step_steer",
+    "straight",
+)
+_FLEET_WEIGHTS = np.array([0.16, 0.16, 0.16, 0.12, 0.22, 0.14, 0.04])
+# Held-out benchmark: Table 4 scenarios plus a step steer and a sine sweep per car and μ.
+HELD_OUT_RUNS = (*TABLE4, "step_steer", "sweep_steer")
+HELD_OUT_SPEED_KMH = {"step_steer": 80.0, "sweep_steer": 80.0}
+HELD_OUT_AY_FRACTION = 0.85  # of μ·g in steady state: near the limit, not over it
+
+
+@dataclass(frozen=True)
+class VehicleRun:
+    """One run of a multi-vehicle preset: the car and what it drives."""
+
+    vehicle: VehicleParams
+    maneuver: Maneuver
+
+
+def fleet(count: int, seed: int) -> list[VehicleRun]:
+    """`count` runs on ceil(count / 4) cars of the fleet sampler (seeded), four runs per
+    car: family, initial speed 30-130 km/h, road μ 0.3-1.0, steering severity 0.3-1.0
+    of the μ-limited lateral acceleration (up to the friction limit), drive torque
+    scaled by μ and mass, duration 6-12 s. Held-out cars are never drawn."""
+    if count < 1:
+        raise PresetError(f"fleet: count must be >= 1, got {count}")
+    cars = sample_fleet(
+        math.ceil(count / FLEET_RUNS_PER_CAR), seed, exclude_digests=held_out_digests()
+    ).vehicles
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xF1EE7, 1])
+    runs = []
+    for i in range(count):
+        car = cars[i // FLEET_RUNS_PER_CAR]
+        family = str(rng.choice(_FLEET_FAMILIES, p=_FLEET_WEIGHTS / _FLEET_WEIGHTS.sum()))
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        mu = float(np.round(rng.uniform(0.3, 1.0), 3))
+        torque = rng.uniform(0.0, 400.0) * mu * car.mass_kg / 1500.0
+        runs.append(
+            VehicleRun(
+                car,
+                Maneuver(
+                    name=f"{car.name}_{i % FLEET_RUNS_PER_CAR}_{family}",
+                    family=family,
+                    duration_s=float(np.round(rng.uniform(6.0, 12.0), 2)),
+                    speed_kmh=float(np.round(rng.uniform(30.0, 130.0), 1)),
+                    torque_nm=float(np.round(torque, 0)),
+                    stl_amplitude_m=sign if family == "cornering" else 0.0,
+                    mu=mu,
+                    seed=int(rng.integers(0, 2**31 - 1)),
+                    ay_fraction=float(np.round(rng.uniform(0.3, 1.0), 3)),
+                ),
+            )
+        )
+    return runs
+
+
+def held_out() -> list[VehicleRun]:
+    """The held-out benchmark: every held-out car at μ = 1.0, 0.7, 0.4 through the
+    Table 4 scenarios (their speed and duration, their torque scaled by μ as in the
+    randomized preset), a step steer and a sine sweep
+    (80 km/h, 10 s). Steering amplitudes are each car's own: the STL whose steady-state
+    lateral acceleration is 0.85·μ·g at the run's speed (the paper's fixed STL values
+    would be a different severity on every car)."""
+    runs = []
+    for name, car in held_out_vehicles().items():
+        for mu in HELD_OUT_MU:
+            for j, run in enumerate(HELD_OUT_RUNS):
+                tag = f"{name}_mu{int(round(mu * 10)):02d}_{run}"
+                seed = _TEST_SEED_OFFSET + 100 + j
+                if run in TABLE4:
+                    _desc, speed, torque, duration = TABLE4[run]
+                    maneuver = Maneuver(
+                        tag, "scenario", duration, speed, torque * mu, scenario=run, mu=mu,
+                        seed=seed, ay_fraction=HELD_OUT_AY_FRACTION,
+                        stl_amplitude_m=_held_out_amplitude(car, speed, mu),
+                    )  # fmt: skip
+                else:
+                    speed = HELD_OUT_SPEED_KMH[run]
+                    maneuver = Maneuver(
+                        tag, run, 10.0, speed, 300.0 * mu, mu=mu, seed=seed,
+                        ay_fraction=HELD_OUT_AY_FRACTION,
+                    )  # fmt: skip
+                runs.append(VehicleRun(car, maneuver))
+    return runs
+
+
+def _held_out_amplitude(car: VehicleParams, speed_kmh: float, mu: float) -> float:
+    """Scenario STL amplitude of a held-out car (scen1 and scen3 read it; the path-
+    following scenarios steer by the driver and ignore it)."""
+    tire = load_tire(str(car.tire_path()))
+    model = SingleTrack.from_vehicle(car, tire)
+    return auto_stl_amplitude(car, model, speed_kmh / 3.6, mu, HELD_OUT_AY_FRACTION)
+
+
+def vehicle_preset(name: str, *, seed: int = 0, count: int = 100) -> list[VehicleRun]:
+    """The runs (each with its car) of a multi-vehicle preset."""
+    if name == "fleet":
+        return fleet(count, seed)
+    if name == "held-out":
+        return held_out()
+    raise PresetError(f"unknown vehicle preset {name!r}; known: {', '.join(VEHICLE_PRESETS)}")

@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from sideslip_sim import dynamics as dyn
+from sideslip_sim.axle_tires import axle_tires
 from sideslip_sim.driver import DriverParams, pure_pursuit
 from sideslip_sim.maneuvers import Maneuver, build_program, with_payload
 from sideslip_sim.single_track import SingleTrack
@@ -140,7 +141,9 @@ def _run(
                 handover_left -= 1
         stl_rate = (stl - stl_prev) / dt if k > 0 else 0.0
         stl_prev = stl
-        delta_mean = dyn.road_wheel_angles(stl, p, steer)
+        # Roll steer from the roll at the step's start, held over the step like the
+        # steering itself (a 2.5-ms lag on a ~1-Hz roll mode).
+        delta_mean = dyn.road_wheel_angles(stl, p, steer, x[dyn.S_PHI])
         dyn.wheel_torques(torque[k], p, wheel_torque)
         dyn.rhs(x, p, tc, steer, wheel_torque, mu, k1, aux)
 
@@ -179,7 +182,11 @@ def load_tire(path: str) -> TireParams:
 
 @dataclass(frozen=True)
 class PreparedVehicle:
-    """Everything the compiled loop needs for one vehicle (with payload applied)."""
+    """Everything the compiled loop needs for one vehicle (with payload applied).
+
+    tire is the vehicle's tyre file as parsed; tire_coef holds the front and rear
+    axles' scaled coefficients as rows 0 and 1 (see axle_tires).
+    """
 
     vehicle: VehicleParams
     tire: TireParams
@@ -191,8 +198,9 @@ class PreparedVehicle:
 def prepare(vehicle: VehicleParams, payload_kg: float = 0.0) -> PreparedVehicle:
     loaded = with_payload(vehicle, payload_kg)
     tire = load_tire(str(loaded.tire_path()))
-    coef = tire.coefficients()
-    params = dyn.pack_params(loaded, tire)
+    front, rear = axle_tires(loaded, tire)
+    coef = np.ascontiguousarray(np.stack([front.coefficients(), rear.coefficients()]))
+    params = dyn.pack_params(loaded, tire, axle_tires_differ=front.values != rear.values)
     return PreparedVehicle(loaded, tire, coef, params, SingleTrack.from_vehicle(loaded, tire))
 
 

@@ -4,7 +4,8 @@ It serves three purposes: a reference for the full model's physics tests, the
 understeer gradient the path-following driver feeds forward, and the steering scale
 that keeps manoeuvre amplitudes physically sensible at each speed.
 
-Axle cornering stiffness = 2 × the tyre's dFy/dα at the static corner load (N/rad).
+Axle cornering stiffness = 2 × the axle tyre's dFy/dα at the static corner load (N/rad),
+with the vehicle's per-axle tyre scaling applied (see axle_tires).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sideslip_sim.axle_tires import axle_tires
 from sideslip_sim.tire import TireParams, cornering_stiffness
 from sideslip_sim.vehicle import VehicleParams
 
@@ -31,7 +33,7 @@ class SingleTrack:
 
     @classmethod
     def from_vehicle(cls, vehicle: VehicleParams, tire: TireParams) -> SingleTrack:
-        coef = tire.coefficients()
+        front, rear = axle_tires(vehicle, tire)
         fz_f = 0.5 * vehicle.static_axle_load_front_n
         fz_r = 0.5 * vehicle.static_axle_load_rear_n
         return cls(
@@ -39,8 +41,8 @@ class SingleTrack:
             yaw_inertia_kgm2=vehicle.yaw_inertia_kgm2,
             a_m=vehicle.cg_to_front_axle_m,
             b_m=vehicle.cg_to_rear_axle_m,
-            c_front_n_per_rad=2.0 * cornering_stiffness(coef, fz_f),
-            c_rear_n_per_rad=2.0 * cornering_stiffness(coef, fz_r),
+            c_front_n_per_rad=2.0 * cornering_stiffness(front.coefficients(), fz_f),
+            c_rear_n_per_rad=2.0 * cornering_stiffness(rear.coefficients(), fz_r),
         )
 
     @property

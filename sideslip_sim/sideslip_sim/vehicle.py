@@ -63,10 +63,23 @@ class VehicleParams:
     wheel_spin_inertia_rear_kgm2: float
     tire_rolling_radius_m: float
     tire_file: str
+    # Scaling of the tyre file's Magic Formula through its user factors: the nominal load
+    # (LFZO: a bigger tyre of the same family for a heavier car), and per axle the
+    # cornering stiffness (LKY) and peak friction (LMUY, LMUX): another compound, size
+    # or inflation on each axle. All 1.0 = the file as measured.
+    tire_nominal_load_scale: float
+    tire_cornering_stiffness_scale_front: float
+    tire_cornering_stiffness_scale_rear: float
+    tire_peak_friction_scale_front: float
+    tire_peak_friction_scale_rear: float
     # Steering: STL (steering-bar travel, m) -> mean road-wheel angle (rad) is linear.
     stl_per_road_wheel_angle_m_per_rad: float
     ackermann_fraction: float
     max_road_wheel_angle_rad: float
+    # Roll steer: road-wheel angle per body roll angle (rad/rad) of each axle, > 0 roll
+    # understeer (the front wheels steer out of the turn, the rear wheels into it).
+    roll_steer_front_rad_per_rad: float
+    roll_steer_rear_rad_per_rad: float
     # Driveline: wheel torque from the manoeuvre, split by an open differential per axle.
     drive_layout: str
     drive_front_fraction: float
@@ -146,8 +159,14 @@ _POSITIVE = {
         "antiroll_rear_nm_per_rad",
         "roll_center_height_front_m",
         "roll_center_height_rear_m",
+        "roll_steer_front_rad_per_rad",
+        "roll_steer_rear_rad_per_rad",
     }
 }
+# Tyre scaling beyond these factors is another tyre, not a scaled one.
+TIRE_SCALE_RANGE = (0.5, 2.0)
+# Roll steer of production suspensions stays within about ±0.25 rad/rad.
+MAX_ABS_ROLL_STEER = 0.3
 
 
 def _validate(values: dict[str, Any], where: str) -> None:
@@ -166,6 +185,23 @@ def _validate(values: dict[str, Any], where: str) -> None:
         )
     if values["max_road_wheel_angle_rad"] >= math.radians(60.0):
         raise VehicleFileError(f"{where}: max_road_wheel_angle_rad must be < 60 deg in radians")
+    for name in (
+        "tire_nominal_load_scale",
+        "tire_cornering_stiffness_scale_front",
+        "tire_cornering_stiffness_scale_rear",
+        "tire_peak_friction_scale_front",
+        "tire_peak_friction_scale_rear",
+    ):
+        low, high = TIRE_SCALE_RANGE
+        if not low <= values[name] <= high:
+            raise VehicleFileError(
+                f"{where}: {name} must be in [{low}, {high}], got {values[name]!r}"
+            )
+    for name in ("roll_steer_front_rad_per_rad", "roll_steer_rear_rad_per_rad"):
+        if abs(values[name]) > MAX_ABS_ROLL_STEER:
+            raise VehicleFileError(
+                f"{where}: {name} must be within ±{MAX_ABS_ROLL_STEER}, got {values[name]!r}"
+            )
     for name in ("roll_center_height_front_m", "roll_center_height_rear_m"):
         if not 0.0 <= values[name] < values["cg_height_m"]:
             raise VehicleFileError(f"{where}: {name} must be in [0, cg_height_m)")

@@ -72,7 +72,7 @@ def write_arrays(tmp_path: Path) -> Callable[..., Path]:
 @pytest.fixture(scope="session")
 def sim_bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A ``sideslip-generate``-style folder (index.json + 4 bags of 1 s, 400 samples each)."""
-    from sideslip_sim.generate import generate
+    from sideslip_sim.generate import generate, single_vehicle
     from sideslip_sim.maneuvers import Maneuver
     from sideslip_sim.vehicle import load_vehicle
 
@@ -83,5 +83,6 @@ def sim_bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         Maneuver("sine_80", "sine_steer", 1.0, 80.0, 0.0, seed=2),
         Maneuver("straight_50", "straight", 1.0, 50.0, 0.0),
     ]
-    generate(load_vehicle("paper_sedan"), maneuvers, out, preset_name="test", progress=False)
+    runs = single_vehicle(load_vehicle("paper_sedan"), maneuvers)
+    generate(runs, out, preset_name="test", progress=False)
     return out
