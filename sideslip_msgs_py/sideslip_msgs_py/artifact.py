@@ -34,7 +34,14 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import ContractError
-from .features import CHANNELS
+from .model_inputs import (
+    ModelInputError,
+    check_inputs,
+    check_prior,
+    needs_vehicle,
+    required_channels,
+)
+from .vehicle_description import VehicleDescription, VehicleDescriptionError
 
 FORMAT_VERSION: Final = 1
 ARCHITECTURES: Final = ("lstm", "bilstm")
@@ -99,7 +106,8 @@ class ModelMetadata:
     layers: int
     """Stacked LSTM layers (layer k > 0 reads H, or 2H for bilstm, inputs)."""
     features: tuple[str, ...]
-    """Input channels in column order: names from :data:`sideslip_msgs_py.features.CHANNELS`."""
+    """Input columns in order: contract channels, derived inputs or ``vehicle.*``
+    conditioning inputs (:mod:`sideslip_msgs_py.model_inputs`)."""
     window_steps: int
     """Rows per window (the paper: 100)."""
     dt_s: float
@@ -122,6 +130,14 @@ class ModelMetadata:
     """ISO 8601 UTC time of export (default: now, ``YYYY-MM-DDTHH:MM:SSZ``)."""
     provenance: dict[str, Any] = field(default_factory=dict, hash=False)
     """Free-form JSON: sideslip version, training command, git commit, seed, ..."""
+    prior: str = "none"
+    """Physics prior the network is a residual on (:data:`~.model_inputs.PRIORS`):
+    β̂ = prior(window) + y · beta_std + beta_mean; ``none``: β̂ = y · beta_std + beta_mean."""
+    vehicle: dict[str, Any] | None = field(default=None, hash=False)
+    """Nominal parameters of the car the model is fitted to (a
+    :class:`~.vehicle_description.VehicleDescription` as a dict), used when the model
+    reads the vehicle and the deployment names none; None for a fleet model, which must
+    be given the car at deployment."""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self) -> None:
@@ -145,12 +161,18 @@ class ModelMetadata:
         features = tuple(self.features)
         if not features:
             raise fail("features is empty")
-        unknown = [f for f in features if f not in CHANNELS]
-        if unknown:
-            raise fail(f"feature(s) {unknown} not in CHANNELS ({', '.join(CHANNELS)})")
-        if len(set(features)) != len(features):
-            raise fail(f"features has duplicates: {list(features)}")
+        try:
+            check_inputs(features)
+            check_prior(self.prior)
+        except ModelInputError as err:
+            raise fail(str(err)) from None
         object.__setattr__(self, "features", features)
+        if self.vehicle is not None:
+            try:
+                desc = VehicleDescription.from_mapping(self.vehicle, "vehicle")
+            except VehicleDescriptionError as err:
+                raise fail(str(err)) from None
+            object.__setattr__(self, "vehicle", desc.to_dict())
         for name, positive in (("feature_mean", False), ("feature_std", True)):
             v = getattr(self, name)
             try:
@@ -188,6 +210,16 @@ class ModelMetadata:
     def directions(self) -> int:
         """1 for lstm, 2 for bilstm."""
         return 2 if self.architecture == "bilstm" else 1
+
+    @property
+    def needs_vehicle(self) -> bool:
+        """Whether the inputs or the prior read the car's nominal parameters."""
+        return needs_vehicle(self.features, self.prior)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The contract channels the model reads (inputs and prior)."""
+        return required_channels(self.features, self.prior)
 
     def to_header(self) -> dict[str, str]:
         """The safetensors ``__metadata__`` map."""

@@ -213,7 +213,7 @@ def test_any_valid_shape_and_feature_list_round_trips(
     ("changes", "match"),
     [
         ({"architecture": "gru"}, r"unknown architecture 'gru'"),
-        ({"features": ("x_v_mps", "speed")}, r"feature\(s\) \['speed'\] not in CHANNELS"),
+        ({"features": ("x_v_mps", "speed")}, r"unknown model input\(s\) \['speed'\]"),
         ({"features": ()}, r"features is empty"),
         ({"features": ("x_v_mps", "x_v_mps")}, r"duplicates"),
         ({"feature_mean": (0.0, 1.0)}, r"feature_mean has 2 values for 5 features"),
@@ -299,7 +299,7 @@ def _with_json(meta: ModelMetadata, **changes: object) -> dict[str, str]:
         ({"architecture": "transformer"}, r"unknown architecture 'transformer'"),
         (
             {"features": ["x_v_mps", "y_v", "x_a_mps2", "y_a_mps2", "stl_m"]},
-            r"\['y_v'\] not in CHANNELS",
+            r"unknown model input\(s\) \['y_v'\]",
         ),
         ({"feature_std": [1, 1, 1, 1]}, r"feature_std has 4 values for 5 features"),
         ({"feature_mean": [0, 0, 0, 0, 0, 0]}, r"feature_mean has 6 values for 5 features"),

@@ -23,12 +23,15 @@ from typing import Any
 import numpy as np
 
 from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
-from sideslip_msgs_py.features import FeatureError, feature_set
+from sideslip_msgs_py.features import FeatureError
+from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS, input_set
+from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from . import __version__
-from .config import WINDOW_STEPS, TrainProfile, profile
+from .config import DT_S, WINDOW_STEPS, TrainProfile, profile
 from .dataset import DatasetError, Run, data_digest, load_runs, split_runs
 from .export import export_model, load_model
+from .inputs import InputSpec
 from .normalize import Normalizer
 from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
 from .windows import WindowIndex
@@ -63,9 +66,37 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--data", nargs="+", required=True, metavar="DIR", help="bags or folders of bags"
     )
+    p.add_argument(
+        "--val",
+        nargs="+",
+        metavar="DIR",
+        help="validation bags (e.g. other cars than --data's, so that selection measures "
+        "generalisation); default: a fraction of --data's bags",
+    )
     p.add_argument("--model", choices=["lstm", "bilstm"], required=True)
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
-    p.add_argument("--features", default="paper", choices=["paper", "measurable"])
+    p.add_argument(
+        "--features",
+        default="paper",
+        choices=list(INPUT_SETS),
+        help="model inputs: paper (X_v, Y_v, X_a, Y_a, yaw rate, STL) and measurable (no "
+        "Y_v) as measured; paper_kinematic (kinematic inputs only, no steering) and "
+        "measurable_invariant (accelerations in g, road-wheel and understeer angles, the "
+        "car's mass, wheelbase, weight split and CG height as inputs)",
+    )
+    p.add_argument(
+        "--prior",
+        default="none",
+        choices=list(PRIORS),
+        help="physics estimate the network corrects (β̂ = prior + network): none, or "
+        "kinematic_window (the window's dead-reckoned atan2(Y_v, X_v); needs Y_v)",
+    )
+    p.add_argument(
+        "--vehicle",
+        type=Path,
+        help="nominal parameters (YAML) of the car of bags that record none, for inputs "
+        "that read the vehicle (simulated bags record theirs)",
+    )
     p.add_argument("--profile", default="quick", choices=["quick", "paper"])
     p.add_argument("--out", required=True, type=Path, metavar="FILE.safetensors")
     p.add_argument("--force", action="store_true", help="replace --out and its run folder")
@@ -159,22 +190,31 @@ def _make_run_dir(run_dir: Path, resume: bool) -> None:
     run_dir.mkdir(parents=True, exist_ok=True)
 
 
-def _check_features(runs: Sequence[Run], features: Sequence[str]) -> None:
+def _check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
     for run in runs:
-        for name in features:
+        for name in channels:
             column = np.asarray(getattr(run.samples, name))
             if not np.isfinite(column).any():
                 raise CliError(f"feature {name} is missing from bag {run.path} (no finite value)")
 
 
-def _load(args: argparse.Namespace, prof: TrainProfile, features: Sequence[str], log):
-    runs, report = load_runs(args.data, channels=tuple(features))
+def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, log):
+    runs, report = load_runs(args.data, channels=spec.channels)
     log(str(report))
-    _check_features(runs, features)
-    train_runs, val_runs = split_runs(runs, prof.val_fraction, args.seed)
-    normalizer = Normalizer.fit(train_runs, tuple(features))
-    train = WindowIndex.build(train_runs, tuple(features), normalizer, WINDOW_STEPS, prof.stride)
-    val = WindowIndex.build(val_runs, tuple(features), normalizer, WINDOW_STEPS, prof.stride)
+    if args.val:
+        train_runs = runs
+        val_runs, val_report = load_runs(args.val, channels=spec.channels)
+        log(f"validation: {val_report}")
+        shared = {r.path for r in train_runs} & {r.path for r in val_runs}
+        if shared:
+            raise CliError(f"--val shares {len(shared)} bag(s) with --data, e.g. {min(shared)}")
+        runs = [*train_runs, *val_runs]
+    else:
+        train_runs, val_runs = split_runs(runs, prof.val_fraction, args.seed)
+    _check_features(runs, spec.channels)
+    normalizer = Normalizer.fit(train_runs, spec, WINDOW_STEPS)
+    train = WindowIndex.build(train_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
+    val = WindowIndex.build(val_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
         raise CliError(
             f"no windows of {WINDOW_STEPS} samples: {len(train.ends)} for training, "
@@ -215,7 +255,8 @@ def _val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) 
         for start in range(0, len(val.ends), 8192):
             x, _ = val.batch(np.arange(start, min(start + 8192, len(val.ends))))
             est[start : start + x.shape[0]] = result.model(torch.from_numpy(x)).numpy()
-    err = np.degrees(normalizer.invert_beta(est) - val.beta_rad[val.ends])
+    beta_hat = normalizer.invert_beta(est) + val.prior_rad[val.ends]
+    err = np.degrees(beta_hat - val.beta_rad[val.ends])
     return {
         "val_mae_deg": float(np.mean(np.abs(err))),
         "val_rmse_deg": float(np.sqrt(np.mean(err**2))),
@@ -231,7 +272,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         prof = profile(args.profile)
         if args.max_epochs is not None:
             prof = replace(prof, max_epochs=args.max_epochs)
-        features = feature_set(args.features)
+        features = input_set(args.features)
+        vehicle = VehicleDescription.load(args.vehicle) if args.vehicle else None
         if args.workers < 1:
             raise CliError(f"--workers must be >= 1, got {args.workers}")
         base = TrainConfig(
@@ -254,8 +296,14 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
             import_ray()
         run_dir = _check_out(args)
-        runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, features, log)
+        spec = InputSpec(features, args.prior, DT_S, vehicle)
+        runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, spec, log)
         dt_s = sample_period_s(runs)
+        if abs(dt_s / DT_S - 1.0) > 0.02 and spec.prior != "none":
+            raise CliError(
+                f"the bags' sample period is {dt_s * 1e3:.2f} ms; the {spec.prior} prior "
+                f"integrates at {DT_S * 1e3:.2f} ms: resample the bags first"
+            )
     except (CliError, DatasetError, FeatureError, ImportError, ValueError) as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -266,6 +314,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         "profile": asdict(prof),
         "train_config": asdict(base),
         "features": list(features),
+        "prior": args.prior,
         "train_bags": [r.name for r in train_runs],
         "val_bags": [r.name for r in val_runs],
         "data_digest": data_digest(runs),
@@ -281,6 +330,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         keys = (
             "data_digest",
             "features",
+            "prior",
             "train_bags",
             "val_bags",
             "normalizer",
@@ -334,6 +384,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         training_data_digest=config["data_digest"],
         metrics=metrics,
         pso=pso_info,
+        prior=spec.prior,
+        vehicle=vehicle.to_dict() if vehicle is not None else None,
         created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         provenance={
             "command": config["command"],

@@ -309,6 +309,21 @@ def load_runs(
             notes.append(note)
             lines.append(f"{name}: {note}")
 
+        onset = contents.run_metadata.get("spin_onset_s")
+        if isinstance(onset, int | float) and not isinstance(onset, bool):
+            # A run that spun (the simulator flags |β| > 30° at speed) is used up to the
+            # spin only: the approach to the limit is what a stability controller needs;
+            # the spin itself (|β| of tens of degrees, no longer a steered car) would
+            # dominate a squared-error loss. See docs/training.md.
+            keep = int(np.searchsorted(samples.stamp_ns - samples.stamp_ns[0], onset * 1e9))
+            note = f"spun at {onset:.2f} s: samples after the spin onset left out"
+            notes.append(note)
+            lines.append(f"{name}: {note}")
+            samples = _slice(samples, 0, keep)
+            if len(samples) == 0:
+                refused.append(f"{name}: spun at once")
+                continue
+
         steps = np.diff(samples.stamp_ns)
         cuts = (np.flatnonzero(steps > max_gap_ns) + 1).tolist()
         if cuts:

@@ -21,9 +21,11 @@ import numpy.typing as npt
 import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
-from sideslip_msgs_py.features import FEATURE_SETS, channel_indices
+from sideslip_msgs_py.model_inputs import INPUT_SETS
+from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from .dataset import Run
+from .inputs import InputSpec
 from .model import SideslipNet
 
 FloatArray = npt.NDArray[np.float64]
@@ -71,25 +73,38 @@ class Trace:
 
 
 def model_label(meta: ModelMetadata) -> str:
-    """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (+ feature set when not paper)."""
+    """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (+ input set when not paper, +
+    the prior it is a residual on)."""
     arch = "LSTM" if meta.architecture == "lstm" else "BiLSTM"
     label = f"PSO-{arch}" if meta.pso else arch
-    for name, channels in FEATURE_SETS.items():
-        if tuple(meta.features) == channels and name != "paper":
-            label += f" [{name}]"
+    named = [n for n, inputs in INPUT_SETS.items() if tuple(meta.features) == inputs]
+    if not named:
+        label += f" [{len(meta.features)} inputs]"
+    elif named[0] != "paper":
+        label += f" [{named[0]}]"
+    if meta.prior != "none":
+        label += f" + {meta.prior} prior"
     return label
 
 
-def predict_run(model: SideslipNet, meta: ModelMetadata, run: Run) -> FloatArray:
-    """β̂ [rad] for every sample with a full window, i.e. samples[window-1:]."""
-    s = run.samples
-    channel_indices(meta.features)  # refuses a feature that is not a contract channel
+def predict_run(
+    model: SideslipNet,
+    meta: ModelMetadata,
+    run: Run,
+    *,
+    vehicle: VehicleDescription | None = None,
+) -> FloatArray:
+    """β̂ [rad] for every sample with a full window, i.e. samples[window-1:].
+
+    ``vehicle``: the car, for a model that reads it, when the run's bag records none
+    (default: the bag's, else the one stored in the model).
+    """
+    fallback = vehicle
+    if fallback is None and meta.vehicle is not None:
+        fallback = VehicleDescription.from_mapping(meta.vehicle)
+    spec = InputSpec(meta.features, meta.prior, meta.dt_s, fallback)
     # The contract's z-score (float64, rounded once to float32), as the estimator does.
-    x = zscore(
-        np.stack([getattr(s, c) for c in meta.features], axis=1),
-        meta.feature_mean,
-        meta.feature_std,
-    )
+    x = zscore(spec.inputs(run), meta.feature_mean, meta.feature_std)
     w = meta.window_steps
     windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (N, F, w)
     out = np.empty(windows.shape[0])
@@ -98,7 +113,8 @@ def predict_run(model: SideslipNet, meta: ModelMetadata, run: Run) -> FloatArray
         for start in range(0, windows.shape[0], PREDICT_BATCH):
             chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
-    return out * meta.beta_std + meta.beta_mean
+    prior = spec.prior_rad(run, w)[w - 1 :]
+    return out * meta.beta_std + meta.beta_mean + prior
 
 
 def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:

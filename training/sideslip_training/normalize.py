@@ -18,12 +18,13 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 import numpy.typing as npt
 
-from sideslip_msgs_py.features import channel_indices
+from sideslip_msgs_py.model_inputs import ModelInputError, check_inputs
 
 from .dataset import BETA, DatasetError
 
 if TYPE_CHECKING:
     from .dataset import Run
+    from .inputs import InputSpec
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -54,8 +55,10 @@ class Normalizer:
     notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "features", tuple(self.features))
-        channel_indices(self.features)
+        try:
+            object.__setattr__(self, "features", check_inputs(self.features))
+        except ModelInputError as err:
+            raise DatasetError(str(err)) from None
         for name in ("mean", "std"):
             arr = np.array(getattr(self, name), dtype=np.float64)
             if arr.shape != (len(self.features),) or not np.isfinite(arr).all():
@@ -78,14 +81,21 @@ class Normalizer:
     __hash__ = None  # type: ignore[assignment]
 
     @classmethod
-    def fit(cls, runs: Sequence[Run], features: Sequence[str]) -> Normalizer:
+    def fit(
+        cls, runs: Sequence[Run], features: Sequence[str] | InputSpec, window_steps: int = 100
+    ) -> Normalizer:
         """Statistics over every finite sample of ``runs`` (pass the training runs only).
 
-        Each channel uses its own finite values (a NaN in one channel does not remove the
-        sample from the others). Raises DatasetError when a channel or β has none.
+        ``features``: channel names, or an :class:`~.inputs.InputSpec` (derived inputs, a
+        prior). With a prior, the "β" statistics are those of the target β − prior over
+        the samples that have a full window. Each column uses its own finite values (a
+        NaN in one does not remove the sample from the others). Raises DatasetError when
+        a column or β has none.
         """
-        features = tuple(features)
-        channel_indices(features)
+        from .inputs import InputSpec
+
+        spec = InputSpec.of(features)
+        features = spec.features
         if not runs:
             raise DatasetError("Normalizer.fit: no runs")
         columns = [*features, BETA]
@@ -94,9 +104,10 @@ class Normalizer:
             if not run.samples.has_truth:
                 msg = f"Normalizer.fit: run {run.name} has no ground truth β"
                 raise DatasetError(msg)
-            for c in features:
-                values[c].append(np.asarray(getattr(run.samples, c), np.float64))
-            values[BETA].append(run.samples.beta_rad())
+            x = spec.inputs(run)
+            for j, c in enumerate(features):
+                values[c].append(x[:, j])
+            values[BETA].append(run.samples.beta_rad() - spec.prior_rad(run, window_steps))
         means: list[float] = []
         stds: list[float] = []
         notes: list[str] = []

@@ -19,8 +19,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from sideslip_msgs_py.sample import SampleArrays
-
 from .dataset import DatasetError
 from .normalize import Normalizer
 
@@ -28,14 +26,10 @@ if TYPE_CHECKING:
     import torch
 
     from .dataset import Run
+    from .inputs import InputSpec
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-
-
-def _feature_matrix(samples: SampleArrays, features: Sequence[str]) -> FloatArray:
-    """(S, F) float64 of ``features`` in the given order (units of CHANNELS)."""
-    return np.column_stack([np.asarray(getattr(samples, c), np.float64) for c in features])
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,7 +46,9 @@ class WindowIndex:
 
     Attributes:
         x: (S, F) float32 normalised features, S = samples of all runs.
-        y: (S,) float32 normalised β at each sample (NaN where β is).
+        y: (S,) float32 normalised target at each sample: β, or β − prior for a model
+            with a prior (NaN where either is).
+        prior_rad: (S,) float64 β_prior [rad] of each sample (0 without a prior).
         ends: (N,) int64 index into x of the last sample of each window.
         run_of_window: (N,) int64 index into ``run_names`` of each window's run.
         run_names: names of the runs, in order.
@@ -65,6 +61,7 @@ class WindowIndex:
 
     x: npt.NDArray[np.float32]
     y: npt.NDArray[np.float32]
+    prior_rad: FloatArray
     ends: IntArray
     run_of_window: IntArray
     run_names: tuple[str, ...]
@@ -83,38 +80,45 @@ class WindowIndex:
     def build(
         cls,
         runs: Sequence[Run],
-        features: Sequence[str],
+        features: Sequence[str] | InputSpec,
         normalizer: Normalizer,
         window_steps: int = 100,
         stride: int = 1,
     ) -> WindowIndex:
         """Normalise ``runs`` with ``normalizer`` and index their windows.
 
+        ``features``: channel names, or an :class:`~.inputs.InputSpec` (derived inputs,
+        a prior: the target is then β − prior).
+
         Raises:
             DatasetError: features differ from the normalizer's, a run has no ground
                 truth, or ``window_steps`` / ``stride`` < 1.
         """
-        features = tuple(features)
+        from .inputs import InputSpec
+
+        spec = InputSpec.of(features)
+        features = spec.features
         if features != normalizer.features:
             msg = f"features {features} differ from the normalizer's {normalizer.features}"
             raise DatasetError(msg)
         if window_steps < 1 or stride < 1:
             msg = f"window_steps and stride must be >= 1, got {window_steps} and {stride}"
             raise DatasetError(msg)
-        xs, betas, stamps, ends, owners, notes = [], [], [], [], [], []
+        xs, betas, priors, stamps, ends, owners, notes = [], [], [], [], [], [], []
         offset = 0
         starts = [0]
         for r, run in enumerate(runs):
             if not run.samples.has_truth:
                 msg = f"WindowIndex.build: run {run.name} has no ground truth β"
                 raise DatasetError(msg)
-            raw = _feature_matrix(run.samples, features)
+            raw = spec.inputs(run)
             beta = run.samples.beta_rad()
+            prior = spec.prior_rad(run, window_steps)
             n = raw.shape[0]
             candidates = np.arange(window_steps - 1, n, stride, dtype=np.int64)
             bad = np.concatenate([[0], np.cumsum(~np.isfinite(raw).all(axis=1))])
             clean = (bad[candidates + 1] - bad[candidates + 1 - window_steps] == 0) & np.isfinite(
-                beta[candidates]
+                beta[candidates] - prior[candidates]
             )
             valid = candidates[clean]
             if candidates.size == 0:
@@ -126,6 +130,7 @@ class WindowIndex:
                 )
             xs.append(raw)
             betas.append(beta)
+            priors.append(prior)
             stamps.append(run.samples.stamp_ns)
             ends.append(valid + offset)
             owners.append(np.full(valid.shape, r, dtype=np.int64))
@@ -134,9 +139,11 @@ class WindowIndex:
         width = len(features)
         x_all = np.concatenate(xs) if xs else np.empty((0, width))
         beta_all = np.concatenate(betas) if betas else np.empty(0)
+        prior_all = np.concatenate(priors) if priors else np.empty(0)
         return cls(
             x=normalizer.apply_features(x_all).astype(np.float32),
-            y=normalizer.apply_beta(beta_all).astype(np.float32),
+            y=normalizer.apply_beta(beta_all - prior_all).astype(np.float32),
+            prior_rad=prior_all,
             ends=np.concatenate(ends) if ends else np.empty(0, np.int64),
             run_of_window=np.concatenate(owners) if owners else np.empty(0, np.int64),
             run_names=tuple(run.name for run in runs),

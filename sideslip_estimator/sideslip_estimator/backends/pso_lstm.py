@@ -17,6 +17,15 @@ Sample period: the model assumes rows ``dt_s`` apart (``metadata.dt_s``, the pap
 feeding another rate silently stretches the 250-ms horizon the network learned. The
 estimator's status reports the measured period; compare it with :attr:`dt_s`.
 
+Inputs and prior (:mod:`sideslip_msgs_py.model_inputs`): a model may read derived
+inputs (accelerations in g, road-wheel angle, ...) and its car's nominal parameters
+(``vehicle.*`` inputs), and may be a residual on a physics prior over the window; the
+same functions compute them here as in training. A model that reads the car takes it
+from ``pso_lstm.vehicle_file`` (a description YAML, see
+:class:`~sideslip_msgs_py.vehicle_description.VehicleDescription`, or a simulator
+vehicle file), else from the car stored in the model; without either it is refused at
+start-up.
+
 Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
 :data:`DEFAULT_SIGMA_RAD` (1°) squared. A constant, not a per-sample uncertainty.
@@ -43,8 +52,9 @@ from sideslip_msgs_py.artifact import (
     denormalize_beta,
     read_artifact,
 )
-from sideslip_msgs_py.features import FeatureError, channel_indices
+from sideslip_msgs_py.model_inputs import columns_of_rows, input_matrix, prior_of_window
 from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from .base import BackendError, Estimate, parameter_values
 
@@ -98,6 +108,15 @@ class PsoLstmBackend:
             f"sideslip_estimator/{SHIPPED_MODEL}.",
         ),
         ParameterSpec(
+            "vehicle_file",
+            "",
+            "Nominal parameters (YAML) of the car, for a model that reads them (its "
+            "vehicle.* inputs, road-wheel angle, ...): mass_kg, wheelbase_m, "
+            "cg_to_front_axle_m, cg_height_m, track_m, stl_per_road_wheel_angle_m_per_rad, "
+            "tire_rolling_radius_m; or a simulator vehicle file. Empty = the car stored in "
+            "the model, if any.",
+        ),
+        ParameterSpec(
             "threads",
             1,
             "CPU threads for the network (torch.set_num_threads: process-wide). One is "
@@ -118,10 +137,8 @@ class PsoLstmBackend:
                 f"window_steps:={meta.window_steps}"
             )
             raise BackendError(msg)
-        try:
-            columns = channel_indices(meta.features)
-        except FeatureError as err:
-            raise BackendError(f"pso_lstm.model_file {label}: {err}") from None
+        self._vehicle = _vehicle_for(meta, str(v["vehicle_file"]), label)
+        self._channels = meta.channels
 
         torch = _import_torch()
         torch.set_num_threads(threads)
@@ -162,7 +179,6 @@ class PsoLstmBackend:
 
         # Preallocated per-sample buffers: the window's model columns (float64) and the
         # network input (float32, shared memory with the tensor fed to torch).
-        self._columns = np.asarray(columns, dtype=np.intp)
         self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
         self._std = np.asarray(meta.feature_std, dtype=np.float64)
         self._scratch = np.empty((window_steps, n_features), dtype=np.float64)
@@ -177,8 +193,15 @@ class PsoLstmBackend:
     ) -> Estimate | None:
         if rows.shape[0] < self.window_steps:
             return None
+        window = rows[-self.window_steps :]
+        columns = columns_of_rows(window, self._channels)
         x = self._scratch
-        np.take(rows[-self.window_steps :], self._columns, axis=1, out=x, mode="clip")
+        x[:] = input_matrix(columns, self.meta.features, self._vehicle)
+        prior = 0.0
+        if self.meta.prior != "none":
+            prior = prior_of_window(columns, self.meta.prior, self.dt_s)
+            if not math.isfinite(prior):
+                return None
         np.subtract(x, self._mean, out=x)
         np.divide(x, self._std, out=self._input_np[0], casting="same_kind")
         torch = self._torch
@@ -195,7 +218,25 @@ class PsoLstmBackend:
                 True,  # batch_first
             )
             y = torch.nn.functional.linear(output[:, -1, :], self._head.weight, self._head.bias)
-        return Estimate(denormalize_beta(y.item(), self.meta), self.variance_rad2)
+        return Estimate(denormalize_beta(y.item(), self.meta) + prior, self.variance_rad2)
+
+
+def _vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDescription | None:
+    """The car a model reads: the vehicle_file, else the model's own; None if not read."""
+    if not meta.needs_vehicle:
+        return None
+    try:
+        if vehicle_file:
+            return VehicleDescription.load(Path(vehicle_file).expanduser())
+        if meta.vehicle is not None:
+            return VehicleDescription.from_mapping(meta.vehicle, f"{label}: vehicle")
+    except VehicleDescriptionError as err:
+        raise BackendError(f"pso_lstm.vehicle_file: {err}") from None
+    msg = (
+        f"pso_lstm.model_file {label} reads the car's nominal parameters "
+        f"({', '.join(meta.features)}); set pso_lstm.vehicle_file:=/path/to/car.yaml"
+    )
+    raise BackendError(msg)
 
 
 def _prefixed(torch: Any, tensors: Mapping[str, np.ndarray], prefix: str) -> dict[str, Any]:

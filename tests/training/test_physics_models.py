@@ -1,0 +1,145 @@
+"""Models that keep the physics: a residual on a kinematic prior and a model conditioned
+on the car's nominal parameters train, export, and run in the estimator with the
+trainer's output; the conditioning and the prior round-trip through the model file;
+spun runs are used up to the spin; a separate validation fleet is honoured."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from sideslip_estimator.backends import BackendError, create_backend
+from sideslip_estimator.estimator import Estimator, EstimatorParams
+from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.model_inputs import INPUT_SETS
+from sideslip_msgs_py.vehicle_description import VehicleDescription
+from sideslip_training.cli import train_main
+from sideslip_training.dataset import load_runs
+from sideslip_training.evaluate import kinematic, predict_run
+from sideslip_training.export import load_model
+
+from .test_cli import TINY, _feed
+
+
+@pytest.mark.parametrize(
+    ("features", "prior"),
+    [("paper_kinematic", "kinematic_window"), ("measurable_invariant", "none")],
+)
+def test_a_physics_model_runs_in_the_estimator_with_the_trainers_output(
+    sim_bag_dir: Path, tmp_path: Path, features: str, prior: str
+):
+    model = tmp_path / f"{features}.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", features, "--prior", prior, "--out", str(model), *TINY]
+    assert train_main(args) == 0
+    _, meta = read_artifact(model)
+    assert meta.features == INPUT_SETS[features] and meta.prior == prior
+    config = json.loads((tmp_path / f"{features}.run" / "config.json").read_text())
+    assert config["prior"] == prior
+
+    runs, _ = load_runs([sim_bag_dir])
+    run = runs[0]
+    net, meta = load_model(model)
+    expected = predict_run(net, meta, run)
+    values: dict[str, object] = {"model_file": str(model)}
+    if meta.needs_vehicle:
+        car = VehicleDescription.from_mapping(run.run_metadata["vehicle"])
+        path = tmp_path / "car.yaml"
+        path.write_text(yaml.safe_dump(car.to_dict()))
+        values["vehicle_file"] = str(path)
+    backend = create_backend("pso_lstm", values, meta.window_steps)
+    est = Estimator(backend, EstimatorParams(window_steps=meta.window_steps, max_gap_s=1.0))
+    got = _feed(est, run.samples)
+    assert len(got) == len(expected)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+
+
+def test_a_residual_model_starts_from_its_prior(sim_bag_dir: Path, tmp_path: Path):
+    """An untrained-enough residual stays near the kinematic prior: β̂ − prior is the
+    network's small output, never the whole β (the prior is added back)."""
+    model = tmp_path / "residual.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "paper_kinematic", "--prior", "kinematic_window"]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    net, meta = load_model(model)
+    runs, _ = load_runs([sim_bag_dir])
+    for run in runs:
+        est = predict_run(net, meta, run)
+        smoothed = kinematic(run, 20, meta.window_steps)
+        # Both estimate β from Y_v: within a fraction of a degree of each other.
+        assert np.max(np.abs(np.degrees(est - smoothed))) < 1.0
+
+
+def test_a_model_that_reads_the_car_is_refused_without_one(sim_bag_dir: Path, tmp_path: Path):
+    model = tmp_path / "cond.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_invariant", "--out", str(model), *TINY]
+    assert train_main(args) == 0
+    with pytest.raises(BackendError, match="vehicle_file"):
+        create_backend("pso_lstm", {"model_file": str(model)}, 100)
+
+
+def test_conditioning_inputs_round_trip_through_the_model_file(tmp_path: Path, sim_bag_dir: Path):
+    car = VehicleDescription(1320.0, 2.65, 1.1, 0.5, 1.5, 1.7, 0.31)
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump(car.to_dict()))
+    model = tmp_path / "fitted.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_invariant", "--vehicle", str(path)]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    _, meta = read_artifact(model)
+    assert VehicleDescription.from_mapping(meta.vehicle) == car
+    assert [f for f in meta.features if f.startswith("vehicle.")] == [
+        "vehicle.mass_kg",
+        "vehicle.wheelbase_m",
+        "vehicle.front_weight_fraction",
+        "vehicle.cg_height_m",
+    ]
+    # The stored car is the default at deployment: no vehicle_file needed.
+    backend = create_backend("pso_lstm", {"model_file": str(model)}, meta.window_steps)
+    assert backend.meta.vehicle == car.to_dict()
+
+
+def test_spun_runs_are_used_up_to_the_spin(tmp_path: Path):
+    from sideslip_sim.generate import generate, single_vehicle
+    from sideslip_sim.maneuvers import Maneuver
+    from sideslip_sim.vehicle import load_vehicle
+
+    # Rear drive on ice, full torque, a hard sine: it spins (tests/sideslip_sim/test_generate).
+    severe = Maneuver("severe", "sine_steer", 6.0, 90.0, 900.0, stl_amplitude_m=0.12, mu=0.3)
+    out = tmp_path / "bags"
+    out.mkdir()
+    (summary,) = generate(
+        single_vehicle(load_vehicle("compact_rwd"), [severe]), out, progress=False
+    )
+    assert summary.spun
+    runs, report = load_runs([out])
+    kept = (runs[0].samples.stamp_ns[-1] - runs[0].samples.stamp_ns[0]) * 1e-9
+    assert kept < summary.spin_onset_s
+    assert np.max(np.abs(np.degrees(runs[0].samples.beta_rad()))) <= 30.0
+    assert any("spun at" in line for line in report.lines)
+
+
+def test_a_separate_validation_fleet_is_used_as_given(sim_bag_dir: Path, tmp_path: Path, capsys):
+    val = tmp_path / "val"
+    val.mkdir()
+    for bag in ("sine_80", "straight_50"):
+        (val / bag).symlink_to(sim_bag_dir / bag)
+    train = tmp_path / "train"
+    train.mkdir()
+    for bag in ("dlc_70", "sine_60"):
+        (train / bag).symlink_to(sim_bag_dir / bag)
+    model = tmp_path / "m.safetensors"
+    args = ["--data", str(train), "--val", str(val), "--model", "lstm", "--hidden-units", "8"]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    assert sorted(config["train_bags"]) == ["dlc_70", "sine_60"]
+    assert sorted(config["val_bags"]) == ["sine_80", "straight_50"]
+    other = tmp_path / "other.safetensors"
+    code = train_main([*args[:2], "--val", str(sim_bag_dir), *args[4:], "--out", str(other), *TINY])
+    assert code == 2
+    assert "--val shares 2 bag(s) with --data" in capsys.readouterr().err

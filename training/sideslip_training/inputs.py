@@ -1,0 +1,86 @@
+"""What a model reads from a run: its input columns and its physics prior.
+
+:class:`InputSpec` names the inputs (channels, derived and ``vehicle.*`` inputs of
+:mod:`sideslip_msgs_py.model_inputs`) and the prior; it computes both over a whole run
+with the same functions the estimator applies to its window. A run's car comes from its
+bag's metadata (the simulator records it) or, for a recording without it, from the
+spec's ``vehicle``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from sideslip_msgs_py import model_inputs
+from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
+
+from .config import DT_S
+from .dataset import DatasetError
+
+if TYPE_CHECKING:
+    from .dataset import Run
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """Inputs, prior and sample period of a model; ``vehicle`` is the car of runs whose
+    bags do not record one (a real recording)."""
+
+    features: tuple[str, ...]
+    prior: str = "none"
+    dt_s: float = DT_S
+    vehicle: VehicleDescription | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "features", model_inputs.check_inputs(self.features))
+            model_inputs.check_prior(self.prior)
+        except model_inputs.ModelInputError as err:
+            raise DatasetError(str(err)) from None
+
+    @classmethod
+    def of(cls, spec: InputSpec | Sequence[str]) -> InputSpec:
+        """A spec, or plain channel names (no prior) as a spec."""
+        return spec if isinstance(spec, InputSpec) else cls(tuple(spec))
+
+    @property
+    def needs_vehicle(self) -> bool:
+        return model_inputs.needs_vehicle(self.features, self.prior)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return model_inputs.required_channels(self.features, self.prior)
+
+    def run_vehicle(self, run: Run) -> VehicleDescription | None:
+        """The run's car: from its bag's metadata, else the spec's; None when not needed."""
+        if not self.needs_vehicle:
+            return None
+        recorded = run.run_metadata.get("vehicle")
+        if recorded is not None:
+            try:
+                return VehicleDescription.from_mapping(recorded, f"{run.name}: vehicle")
+            except VehicleDescriptionError as err:
+                raise DatasetError(str(err)) from None
+        if self.vehicle is None:
+            raise DatasetError(
+                f"{run.name}: the model reads the vehicle's nominal parameters, but the bag "
+                "records no vehicle; give one (a vehicle description YAML)"
+            )
+        return self.vehicle
+
+    def inputs(self, run: Run) -> FloatArray:
+        """(S, F) float64 input columns of the run (units of model_inputs)."""
+        columns = model_inputs.columns_of(run.samples, self.channels)
+        return model_inputs.input_matrix(columns, self.features, self.run_vehicle(run))
+
+    def prior_rad(self, run: Run, window_steps: int) -> FloatArray:
+        """(S,) β_prior [rad] of every sample (NaN before the first full window)."""
+        columns = model_inputs.columns_of(run.samples, self.channels)
+        return model_inputs.prior_series(columns, self.prior, window_steps, self.dt_s)
