@@ -105,6 +105,7 @@ def _run(
     ratio = p[dyn.P_STL_RATIO]
     wheelbase = p[dyn.P_A] + p[dyn.P_B]
     max_stl_step = driver_cfg[2] * ratio * dt
+    lock_stl = p[dyn.P_MAX_DELTA] * ratio
     path_index = int(carry[0])
     stl_prev = carry[1]
     handover = carry[2]
@@ -129,6 +130,12 @@ def _run(
                 stl = stl_prev + max_stl_step
             elif stl < stl_prev - max_stl_step:
                 stl = stl_prev - max_stl_step
+            # The rack stops at full lock: a driver who asks for more gets no more travel
+            # (the wheels are clamped there anyway; the STL sensor must agree with them).
+            if stl > lock_stl:
+                stl = lock_stl
+            elif stl < -lock_stl:
+                stl = -lock_stl
         else:
             if k > 0 and use_driver[k - 1]:
                 # Driver hands over to an open-loop program: blend out the difference
