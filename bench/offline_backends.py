@@ -12,6 +12,14 @@ Example (the paper-test scenarios at both noise levels)::
     sideslip-generate --preset paper-test --out /tmp/st-eval/paper --noise paper --force
     sideslip-generate --preset paper-test --out /tmp/st-eval/none --noise none --force
     python bench/offline_backends.py --data /tmp/st-eval --json /tmp/st-eval/backends.json
+
+The model-based back-ends (``single_track``, ``ukf``) need the vehicle's parameters:
+``--params-file`` names the shipped files of the vehicle the bags were generated with
+(``--ukf-params-file`` sets the ukf's apart, e.g. a YAML path)::
+
+    sideslip-generate --preset paper-test --vehicle compact_rwd --out /tmp/st-eval/compact \
+        --noise paper --force
+    python bench/offline_backends.py --data /tmp/st-eval/compact --params-file compact_rwd
 """
 
 from __future__ import annotations
@@ -31,10 +39,8 @@ import numpy as np
 
 from sideslip_estimator.backends import create_backend
 from sideslip_estimator.estimator import Estimator, EstimatorParams
-from sideslip_estimator.inputs import InputRejected
-from sideslip_msgs_py import topics
+from sideslip_estimator.replay import replay, replay_columns
 from sideslip_msgs_py.bag import read_bag
-from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
 from sideslip_msgs_py.sample import SampleArrays
 
 
@@ -65,11 +71,15 @@ class Metrics:
     us_per_sample: float
 
 
-def default_configs(smoothing: list[int], params_file: str) -> list[BackendConfig]:
+def default_configs(
+    smoothing: list[int], params_file: str, ukf_params_file: str | None = None
+) -> list[BackendConfig]:
     configs = [
         BackendConfig(f"kinematic n={n}", "kinematic", {"smoothing_steps": n}) for n in smoothing
     ]
     configs.append(BackendConfig("single_track", "single_track", {"params_file": params_file}))
+    ukf_file = ukf_params_file or params_file
+    configs.append(BackendConfig("ukf", "ukf", {"params_file": ukf_file}))
     return configs
 
 
@@ -81,31 +91,10 @@ def estimate_run(
         create_backend(config.backend, config.values, window_steps),
         EstimatorParams(window_steps=window_steps),
     )
-    s = samples
-    cols = [
-        s.stamp_ns.tolist(),
-        s.x_v_mps.tolist(),
-        s.y_v_mps.tolist(),
-        s.x_a_mps2.tolist(),
-        s.y_a_mps2.tolist(),
-        s.yaw_rate_radps.tolist(),
-        s.stl_m.tolist(),
-        s.stl_rate_mps.tolist(),
-    ]
-    beta = np.full(len(s), np.nan)
-    rejected = 0
+    columns = replay_columns(samples)
     started = time.perf_counter()
-    for i, (stamp, x_v, y_v, x_a, y_a, r, stl, stl_rate) in enumerate(zip(*cols, strict=True)):
-        try:
-            est.on_twist(topics.TWIST, TwistFields(stamp, x_v, y_v))
-            est.on_steering(topics.STEERING, SteeringFields(stamp, stl, stl_rate))
-            out = est.on_imu(topics.IMU, ImuFields(stamp, x_a, y_a, r))
-        except InputRejected:
-            rejected += 1
-            continue
-        if out is not None:
-            beta[i] = out.estimate.beta_rad
-    return beta, rejected, time.perf_counter() - started
+    result = replay(est, columns)
+    return result.beta_rad, result.rejected, time.perf_counter() - started
 
 
 def metrics(
@@ -230,7 +219,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--params-file",
         default="paper_sedan",
-        help="single_track params_file (shipped name or YAML path; default paper_sedan)",
+        help="single_track params_file: a shipped name (the vehicle's, e.g. compact_rwd) "
+        "or a YAML path (default paper_sedan)",
+    )
+    parser.add_argument(
+        "--ukf-params-file",
+        help="ukf params_file: a shipped name or a YAML path (default: --params-file, "
+        "which names both back-ends' shipped files of a vehicle)",
     )
     parser.add_argument("--window-steps", type=int, default=100, help="window length (100)")
     return parser
@@ -246,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"offline_backends: error: no bags under {args.data}", file=sys.stderr)
         return 2
     try:
-        configs = default_configs(args.smoothing, args.params_file)
+        configs = default_configs(args.smoothing, args.params_file, args.ukf_params_file)
         for cfg in configs:  # refuse bad settings before any work
             create_backend(cfg.backend, cfg.values, args.window_steps)
     except ValueError as err:

@@ -10,7 +10,9 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "tests"]),
-    package_data={PACKAGE: ["data/single_track/*.yaml", "data/models/*.safetensors"]},
+    package_data={
+        PACKAGE: ["data/single_track/*.yaml", "data/ukf/*.yaml", "data/models/*.safetensors"]
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -18,8 +20,8 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
     install_requires=["numpy", "PyYAML", "sideslip_msgs_py"],
-    # The pso_lstm back-end only: `pip install sideslip_estimator[pso_lstm]`.
-    extras_require={"pso_lstm": ["torch", "safetensors"]},
+    # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (torch), `[ukf]` (filterpy).
+    extras_require={"pso_lstm": ["torch", "safetensors"], "ukf": ["filterpy", "scipy"]},
     zip_safe=False,
     maintainer="sideslip maintainers",
     maintainer_email="maintainers@sideslip.invalid",

@@ -23,6 +23,7 @@ from sideslip_estimator.backends import (
 from sideslip_estimator.backends.kinematic import KinematicBackend
 from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
 from sideslip_estimator.backends.single_track import SingleTrackBackend
+from sideslip_estimator.backends.ukf import UkfBackend
 from sideslip_estimator.estimator import Estimator, EstimatorParams
 from sideslip_msgs_py.features import CHANNELS
 from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
@@ -47,11 +48,12 @@ def _rows(x_v: list[float], y_v: list[float]) -> tuple[np.ndarray, np.ndarray]:
 # --- registry -------------------------------------------------------------------------------------
 
 
-def test_registry_holds_kinematic_and_single_track() -> None:
+def test_registry_holds_every_backend() -> None:
     assert BACKENDS == {
         "kinematic": KinematicBackend,
         "single_track": SingleTrackBackend,
         "pso_lstm": PsoLstmBackend,
+        "ukf": UkfBackend,
     }
     for name, factory in BACKENDS.items():
         assert factory.name == name
@@ -59,7 +61,9 @@ def test_registry_holds_kinematic_and_single_track() -> None:
 
 
 def test_unknown_backend_is_an_error_listing_the_known_ones() -> None:
-    with pytest.raises(BackendError, match=r"'transformer'.*kinematic, single_track, pso_lstm"):
+    with pytest.raises(
+        BackendError, match=r"'transformer'.*kinematic, single_track, pso_lstm, ukf"
+    ):
         create_backend("transformer", {}, 100)
 
 

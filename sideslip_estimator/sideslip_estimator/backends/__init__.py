@@ -13,11 +13,14 @@ from .base import Backend, BackendError, BackendFactory, Estimate
 from .kinematic import KinematicBackend
 from .pso_lstm import PsoLstmBackend  # imports torch only when built
 from .single_track import SingleTrackBackend, SingleTrackParams
+from .ukf import UkfBackend  # imports filterpy only when built
+from .ukf_model import UkfParams
 
 BACKENDS: dict[str, BackendFactory] = {
     KinematicBackend.name: KinematicBackend,
     SingleTrackBackend.name: SingleTrackBackend,
     PsoLstmBackend.name: PsoLstmBackend,
+    UkfBackend.name: UkfBackend,
 }
 
 
@@ -40,6 +43,7 @@ __all__ = [
     "BackendError",
     "Estimate",
     "SingleTrackParams",
+    "UkfParams",
     "backend_factory",
     "create_backend",
 ]

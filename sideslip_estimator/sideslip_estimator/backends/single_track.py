@@ -17,17 +17,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.parameters import ParameterSpec
 
 from .base import BackendError, Estimate, parameter_values
+from .params_file import check_keys, read_params_file
 
 X_V, Y_A, YAW_RATE, STL = channel_indices(("x_v_mps", "y_a_mps2", "yaw_rate_radps", "stl_m"))
 
@@ -50,36 +48,13 @@ class SingleTrackParams:
     @classmethod
     def load(cls, source: str) -> SingleTrackParams:
         """From a YAML path, or the name of a shipped file (``paper_sedan``, ...)."""
-        path = Path(source)
-        if path.suffix in (".yaml", ".yml") or path.exists():
-            where = str(path)
-            try:
-                text = path.read_text()
-            except OSError as err:
-                msg = f"single_track.params_file {where}: cannot read ({err.strerror})"
-                raise BackendError(msg) from None
-        else:
-            ref = resources.files("sideslip_estimator").joinpath(f"{SHIPPED_DIR}/{source}.yaml")
-            if not ref.is_file():
-                shipped = sorted(
-                    p.name.removesuffix(".yaml")
-                    for p in resources.files("sideslip_estimator").joinpath(SHIPPED_DIR).iterdir()
-                )
-                msg = f"single_track.params_file: no shipped {source!r} (shipped: {shipped})"
-                raise BackendError(msg)
-            where, text = f"{source} (shipped)", ref.read_text()
-        return cls.from_mapping(yaml.safe_load(text), where)
+        data, where = read_params_file("single_track", source, SHIPPED_DIR)
+        return cls.from_mapping(data, where)
 
     @classmethod
     def from_mapping(cls, data: object, where: str) -> SingleTrackParams:
-        if not isinstance(data, dict):
-            raise BackendError(f"{where}: expected a mapping of single-track parameters")
         names = [f.name for f in fields(cls)]
-        unknown = sorted(set(data) - set(names))
-        missing = [n for n in names if n not in data]
-        if unknown or missing:
-            msg = f"{where}: unknown keys {unknown}, missing keys {missing}"
-            raise BackendError(msg)
+        data = check_keys(data, where, names, "single-track parameters")
         values: dict[str, object] = {"name": str(data["name"])}
         for n in names[1:]:
             v = data[n]

@@ -1,0 +1,169 @@
+"""The estimator's ``ukf`` parameters: nominal vehicle numbers and one Magic Formula per axle.
+
+The UKF back-end (``sideslip_estimator.backends.ukf``) runs a nonlinear single-track
+model whose axle lateral force is
+
+    F_y(α) = D sin(C atan(B α − E (B α − atan(B α)))),   D = μ_peak F_z,axle,
+
+with α the axle slip angle [rad] (not tan α) and F_z,axle the static axle load. The
+estimator does not import the simulator (DESIGN.md), so it reads B, C, E and μ_peak from
+a YAML file; this module fits them and writes that file.
+
+Fit: least squares (``scipy.optimize.least_squares``, residuals relative to the axle
+load) of the formula to the full tyre model's pure lateral force of the axle's two tyres
+at their static load (κ = 0, road μ scale 1), over α = 0-15° in 0.1° steps. On the
+shipped tyre the MF 5.2 curve *is* a Magic Formula in tan α, so the fit in α is close to
+exact (max error well below 1 % of the peak; tested).
+
+Besides the fit: the nominal mass, yaw inertia, geometry, CG height (longitudinal load
+transfer) and steering ratio of the vehicle file, and each axle's lateral relaxation
+length σ_α at the static tyre load (MF 5.2's PTY1/PTY2; the UKF's tyre lag).
+
+Each axle has its own tyre (per-axle cornering stiffness and friction scaling), hence one
+:class:`~sideslip_sim.tire.TireParams` per axle; the CLI passes the vehicle's tyre file
+scaled per axle (:func:`~sideslip_sim.axle_tires.axle_tires`).
+``python -m sideslip_sim.ukf_params VEHICLE`` prints the file.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from sideslip_sim.tire import TireParams, combined_forces, relaxation_lengths
+from sideslip_sim.vehicle import VehicleParams
+
+FIT_MAX_SLIP_DEG = 15.0
+FIT_STEP_DEG = 0.1
+
+
+@dataclass(frozen=True)
+class AxleMagicFormula:
+    """F_y(α) = μ_peak F_z sin(C atan(B α − E (B α − atan(B α)))) of one axle [N, rad]."""
+
+    b: float
+    c: float
+    e: float
+    mu_peak: float
+
+    def force_n(self, alpha_rad: np.ndarray, fz_axle_n: float) -> np.ndarray:
+        x = self.b * np.asarray(alpha_rad, dtype=float)
+        return (
+            self.mu_peak * fz_axle_n * np.sin(self.c * np.arctan(x - self.e * (x - np.arctan(x))))
+        )
+
+
+def slip_angles_rad(
+    max_deg: float = FIT_MAX_SLIP_DEG, step_deg: float = FIT_STEP_DEG
+) -> np.ndarray:
+    """The fit's slip angles: 0 to ``max_deg`` in ``step_deg`` steps [rad]."""
+    return np.radians(np.arange(0.0, max_deg + 0.5 * step_deg, step_deg))
+
+
+def axle_lateral_force_n(tire: TireParams, fz_axle_n: float, alpha_rad: np.ndarray) -> np.ndarray:
+    """Pure lateral force [N] of the axle's two tyres, each at half of ``fz_axle_n``."""
+    coef = tire.coefficients()
+    fz_tire = 0.5 * fz_axle_n
+    return np.array(
+        [2.0 * combined_forces(coef, fz_tire, 0.0, math.tan(a), 1.0)[1] for a in alpha_rad]
+    )
+
+
+def fit_axle(tire: TireParams, fz_axle_n: float) -> AxleMagicFormula:
+    """Least-squares Magic Formula of the axle's force curve at ``fz_axle_n`` (see module)."""
+    # scipy only here: the simulator itself does not need it.
+    from scipy.optimize import least_squares
+
+    alpha = slip_angles_rad()
+    target = axle_lateral_force_n(tire, fz_axle_n, alpha) / fz_axle_n
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        return AxleMagicFormula(*p).force_n(alpha, 1.0) - target
+
+    # Start: peak from the data, B from the initial slope with a typical C.
+    peak = float(np.max(target))
+    slope = float(target[1] / alpha[1])
+    c0 = 1.3
+    start = np.array([slope / (c0 * peak), c0, 0.0, peak])
+    fit = least_squares(
+        residual,
+        start,
+        bounds=([0.1, 0.5, -10.0, 0.05], [100.0, 2.0, 1.0, 5.0]),
+        x_scale=np.array([1.0, 0.1, 0.1, 0.1]),
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+    )
+    if not fit.success:  # pragma: no cover - least_squares converges on any MF-like curve
+        raise ValueError(f"Magic Formula fit failed: {fit.message}")
+    return AxleMagicFormula(*(float(v) for v in fit.x))
+
+
+def ukf_parameters(
+    vehicle: VehicleParams, tire_front: TireParams, tire_rear: TireParams
+) -> dict[str, float | str]:
+    """The estimator's ``ukf`` back-end parameters (YAML keys) for this vehicle."""
+    front = fit_axle(tire_front, vehicle.static_axle_load_front_n)
+    rear = fit_axle(tire_rear, vehicle.static_axle_load_rear_n)
+    out: dict[str, float | str] = {
+        "name": vehicle.name,
+        "mass_kg": vehicle.mass_kg,
+        "yaw_inertia_kgm2": vehicle.yaw_inertia_kgm2,
+        "cg_to_front_axle_m": vehicle.cg_to_front_axle_m,
+        "cg_to_rear_axle_m": vehicle.cg_to_rear_axle_m,
+        "cg_height_m": vehicle.cg_height_m,
+        "stl_per_road_wheel_angle_m_per_rad": vehicle.stl_per_road_wheel_angle_m_per_rad,
+    }
+    for axle, mf in (("front", front), ("rear", rear)):
+        # Five significant digits: the fit itself is good to ~1e-3 of the peak.
+        out[f"mf_b_{axle}"] = float(f"{mf.b:.5g}")
+        out[f"mf_c_{axle}"] = float(f"{mf.c:.5g}")
+        out[f"mf_e_{axle}"] = float(f"{mf.e:.5g}")
+        out[f"mu_peak_{axle}"] = float(f"{mf.mu_peak:.5g}")
+    for axle, tire, fz in (
+        ("front", tire_front, vehicle.static_axle_load_front_n),
+        ("rear", tire_rear, vehicle.static_axle_load_rear_n),
+    ):
+        sigma_alpha = relaxation_lengths(tire.coefficients(), 0.5 * fz)[1]
+        out[f"relaxation_length_{axle}_m"] = round(float(sigma_alpha), 4)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the UKF observer parameters of a vehicle as YAML."""
+    import argparse
+
+    import yaml
+
+    from sideslip_sim.axle_tires import axle_tires
+    from sideslip_sim.simulate import load_tire
+    from sideslip_sim.vehicle import VehicleFileError, load_vehicle
+
+    parser = argparse.ArgumentParser(
+        prog="python -m sideslip_sim.ukf_params",
+        description="Print the estimator's ukf parameters (YAML) for a vehicle: nominal "
+        "mass, inertia and geometry, and per axle a Magic Formula (B, C, E, μ_peak) fitted "
+        "to the tyre model's pure lateral force of the axle at its static load.",
+    )
+    parser.add_argument("vehicle", help="shipped vehicle name or path to a vehicle YAML")
+    args = parser.parse_args(argv)
+    try:
+        vehicle = load_vehicle(args.vehicle)
+        # Both axles carry the vehicle's tyre file as it is.
+        tire = load_tire(str(vehicle.tire_path()))
+        params = ukf_parameters(vehicle, *axle_tires(vehicle, tire))
+    except (VehicleFileError, OSError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"# ukf parameters of {vehicle.name} (python -m sideslip_sim.ukf_params {args.vehicle})")
+    print("# Axle lateral force F_y = mu_peak*F_z*sin(C*atan(B*a - E*(B*a - atan(B*a)))),")
+    print("# a = slip angle [rad], F_z = static axle load [N]; fitted to the tyre model.")
+    print(yaml.safe_dump(params, sort_keys=False), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
