@@ -27,14 +27,16 @@ X_V, Y_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
 class InputLimits:
     """Largest magnitude accepted per quantity; anything beyond is a sensor fault.
 
-    Defaults are far outside what a road car reaches (about 5 g, 360 km/h, 290 deg/s,
-    half a metre of rack travel), so they catch faults without clipping real data.
+    Defaults are far outside what a road car reaches (about 5 g, 360 km/h, 290 deg/s),
+    so they catch faults without clipping real data. STL is the paper's steering-bar
+    travel, whose scale is the vehicle's: our simulated cars reach 0.98 m (paper_sedan)
+    to 1.33 m (the fleet's slowest steering) at full lock, hence 1.5 m.
     """
 
     speed_mps: float = 100.0
     acceleration_mps2: float = 50.0
     yaw_rate_radps: float = 5.0
-    stl_m: float = 0.5
+    stl_m: float = 1.5
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():

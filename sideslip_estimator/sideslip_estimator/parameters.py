@@ -14,7 +14,8 @@ PARAMETERS = (
         "backend",
         "kinematic",
         "Estimator back-end: kinematic (atan2(Y_v, X_v)), single_track (bicycle-model "
-        "Kalman filter) or pso_lstm (an exported network, pso_lstm.model_file).",
+        "Kalman filter), ukf (unscented Kalman filter, Magic Formula tyres) or pso_lstm "
+        "(an exported network, pso_lstm.model_file).",
     ),
     ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
     ParameterSpec(
@@ -47,7 +48,7 @@ PARAMETERS = (
         "limits.acceleration_mps2", 50.0, "|X_a|, |Y_a| beyond this [m/s²] are rejected."
     ),
     ParameterSpec("limits.yaw_rate_radps", 5.0, "|yaw rate| beyond this [rad/s] is rejected."),
-    ParameterSpec("limits.stl_m", 0.5, "|steering rack travel| beyond this [m] is rejected."),
+    ParameterSpec("limits.stl_m", 1.5, "|steering rack travel| beyond this [m] is rejected."),
 )
 
 

@@ -134,6 +134,14 @@ INPUT_SETS: Final[dict[str, tuple[str, ...]]] = {
         "x_v_mps", "tan_beta_kinematic", "beta_rate_radps", "x_a_g", "y_a_g",
         "yaw_rate_radps",
     ),
+    # Kinematics, steering as road-wheel and understeer angles, and the car's nominal
+    # parameters: the network can learn how a car's dynamics refine the kinematics.
+    "paper_invariant": (
+        "x_v_mps", "tan_beta_kinematic", "beta_rate_radps", "x_a_g", "y_a_g",
+        "yaw_rate_radps", "road_wheel_angle_rad", "understeer_angle_rad",
+        "vehicle.mass_kg", "vehicle.wheelbase_m", "vehicle.front_weight_fraction",
+        "vehicle.cg_height_m",
+    ),
     # No Y_v: vehicle-invariant scaling plus the car's nominal parameters.
     "measurable_invariant": (
         "x_v_mps", "x_a_g", "y_a_g", "centripetal_g", "beta_rate_radps",

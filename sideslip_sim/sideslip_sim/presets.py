@@ -256,7 +256,7 @@ def held_out() -> list[VehicleRun]:
     for name, car in held_out_vehicles().items():
         for mu in HELD_OUT_MU:
             for j, run in enumerate(HELD_OUT_RUNS):
-                tag = f"{name}_mu{int(round(mu * 10)):02d}_{run}"
+                tag = f"{name}_mu{round(mu * 10):02d}_{run}"
                 seed = _TEST_SEED_OFFSET + 100 + j
                 if run in TABLE4:
                     _desc, speed, torque, duration = TABLE4[run]

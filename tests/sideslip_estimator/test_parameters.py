@@ -42,7 +42,7 @@ def _defaults() -> dict[str, object]:
 # --- typed defaults ---------------------------------------------------------------------------
 
 FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm")
-FLOAT_NAMES = {"mu", "real_time_factor"}
+FLOAT_NAMES = {"mu", "real_time_factor", "friction_initial", "friction_initial_sigma"}
 INT_NAMES = {
     "window_steps",
     "smoothing_steps",
@@ -51,8 +51,8 @@ INT_NAMES = {
     "wait_for_subscribers",
     "threads",
 }
-BOOL_NAMES = {"publish_clock", "loop", "ground_truth"}
-STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise", "model_file"}
+BOOL_NAMES = {"publish_clock", "loop", "ground_truth", "tyre_relaxation", "estimate_friction"}
+STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise", "model_file", "vehicle_file"}
 
 
 def _expected_type(full_name: str) -> type:

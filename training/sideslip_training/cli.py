@@ -111,6 +111,9 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--hidden-units", type=int, help="without --pso (default: the profile's)")
     p.add_argument("--learning-rate", type=float, help="without --pso (default: the profile's)")
     p.add_argument("--max-epochs", type=int, help="override the profile's epoch limit")
+    p.add_argument("--stride", type=int, help="override the profile's window stride [samples]")
+    p.add_argument("--patience", type=int, help="override the profile's early-stopping patience")
+    p.add_argument("--batch-size", type=int, help="override the profile's batch size")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -270,8 +273,13 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     started = time.perf_counter()
     try:
         prof = profile(args.profile)
-        if args.max_epochs is not None:
-            prof = replace(prof, max_epochs=args.max_epochs)
+        for name in ("max_epochs", "stride", "patience", "batch_size"):
+            value = getattr(args, name)
+            if value is not None:
+                if value < 1:
+                    flag = name.replace("_", "-")
+                    raise CliError(f"{name} must be >= 1 (--{flag}), got {value}")
+                prof = replace(prof, **{name: value})
         features = input_set(args.features)
         vehicle = VehicleDescription.load(args.vehicle) if args.vehicle else None
         if args.workers < 1:

@@ -58,7 +58,8 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDesc
 
 from .base import BackendError, Estimate, parameter_values
 
-SHIPPED_MODEL: Final = "data/models/pso_lstm_paper.safetensors"
+SHIPPED_DIR: Final = "data/models"
+SHIPPED_MODEL: Final = f"{SHIPPED_DIR}/fleet_lstm_paper.safetensors"
 """The default model, relative to the sideslip_estimator package."""
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
@@ -74,14 +75,34 @@ def _import_torch() -> Any:
     return torch
 
 
+def shipped_models() -> list[str]:
+    """Names of the models shipped in the package (``model_file`` accepts them)."""
+    folder = resources.files("sideslip_estimator").joinpath(SHIPPED_DIR)
+    if not folder.is_dir():
+        return []
+    return sorted(
+        p.name.removesuffix(".safetensors")
+        for p in folder.iterdir()
+        if p.name.endswith(".safetensors")
+    )
+
+
 def _read_model(model_file: str) -> tuple[dict[str, np.ndarray], ModelMetadata, str]:
-    """Tensors, metadata and a short label of the model ``model_file`` names ("" = shipped)."""
+    """Tensors, metadata and a short label of the model ``model_file`` names: a path, the
+    name of a shipped model, or "" for the default shipped one."""
     try:
-        if model_file:
+        if model_file and ("/" in model_file or model_file.endswith(".safetensors")):
             path = Path(model_file).expanduser()
             tensors, meta = read_artifact(path)
             return tensors, meta, path.name
-        ref = resources.files("sideslip_estimator").joinpath(SHIPPED_MODEL)
+        if model_file and model_file not in shipped_models():
+            msg = (
+                f"pso_lstm.model_file: {model_file!r} is neither a .safetensors path nor a "
+                f"shipped model (shipped: {', '.join(shipped_models())})"
+            )
+            raise BackendError(msg)
+        relative = f"{SHIPPED_DIR}/{model_file}.safetensors" if model_file else SHIPPED_MODEL
+        ref = resources.files("sideslip_estimator").joinpath(relative)
         if not ref.is_file():
             msg = (
                 f"pso_lstm.model_file: no model is shipped yet (expected "
@@ -104,8 +125,9 @@ class PsoLstmBackend:
         ParameterSpec(
             "model_file",
             "",
-            "Model artifact (.safetensors written by sideslip-train); empty = the shipped "
-            f"sideslip_estimator/{SHIPPED_MODEL}.",
+            "Model artifact (.safetensors written by sideslip-train), or the name of a "
+            "shipped model (sideslip_estimator/data/models/NAME.safetensors); empty = the "
+            f"shipped default, sideslip_estimator/{SHIPPED_MODEL}.",
         ),
         ParameterSpec(
             "vehicle_file",
