@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -85,4 +86,18 @@ def parameter_values(
         if not ok:
             raise BackendError(f"{backend}.{name} must be a {spec.type_name}, got {v!r}")
         out[name] = v  # type: ignore[assignment]
+    return out
+
+
+def positive_values(
+    backend: str, values: Mapping[str, object], names: Iterable[str]
+) -> dict[str, float]:
+    """``values[name]`` as floats for ``names``, each checked finite and > 0 (sigmas,
+    time constants, speed thresholds); BackendError names the first that is not."""
+    out: dict[str, float] = {}
+    for name in names:
+        x = float(values[name])  # type: ignore[arg-type]
+        if not (math.isfinite(x) and x > 0.0):
+            raise BackendError(f"{backend}.{name} must be finite and > 0, got {x!r}")
+        out[name] = x
     return out

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.parameters import ParameterSpec
 
-from .base import BackendError, Estimate, parameter_values
+from .base import BackendError, Estimate, parameter_values, positive_values
 from .params_file import check_keys, read_params_file
 
 X_V, Y_A, YAW_RATE, STL = channel_indices(("x_v_mps", "y_a_mps2", "yaw_rate_radps", "stl_m"))
@@ -106,18 +106,17 @@ class SingleTrackBackend:
         del window_steps  # recursive: it reads the newest row only
         v = parameter_values(self.name, self.parameters, values)
         self.params = SingleTrackParams.load(str(v["params_file"]))
-        sig = {}
-        for key in (
-            "yaw_rate_sigma_radps",
-            "lateral_acceleration_sigma_mps2",
-            "process_sigma_lateral_mps2",
-            "process_sigma_yaw_radps2",
-            "min_speed_mps",
-        ):
-            x = float(v[key])
-            if not (math.isfinite(x) and x > 0.0):
-                raise BackendError(f"single_track.{key} must be finite and > 0, got {x!r}")
-            sig[key] = x
+        sig = positive_values(
+            self.name,
+            v,
+            (
+                "yaw_rate_sigma_radps",
+                "lateral_acceleration_sigma_mps2",
+                "process_sigma_lateral_mps2",
+                "process_sigma_yaw_radps2",
+                "min_speed_mps",
+            ),
+        )
         self.min_speed = sig["min_speed_mps"]
         self._r = np.diag([sig["yaw_rate_sigma_radps"], sig["lateral_acceleration_sigma_mps2"]])
         self._r = self._r**2

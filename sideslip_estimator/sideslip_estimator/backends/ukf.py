@@ -58,7 +58,7 @@ import numpy.typing as npt
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.parameters import ParameterSpec
 
-from .base import BackendError, Estimate, parameter_values
+from .base import BackendError, Estimate, parameter_values, positive_values
 from .ukf_model import MIN_VX_MPS, SingleTrackMagicFormula, UkfParams
 
 X_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
@@ -198,18 +198,17 @@ class UkfBackend:
         del window_steps  # recursive: it reads the newest row only
         v = parameter_values(self.name, self.parameters, values)
         self.params = UkfParams.load(str(v["params_file"]))
-        sig: dict[str, float] = {}
-        for key in (
-            *TUNED_PARAMETERS,
-            "friction_initial",
-            "friction_initial_sigma",
-            "friction_memory_s",
-            "min_speed_mps",
-        ):
-            x = float(v[key])  # type: ignore[arg-type]
-            if not (math.isfinite(x) and x > 0.0):
-                raise BackendError(f"ukf.{key} must be finite and > 0, got {x!r}")
-            sig[key] = x
+        sig = positive_values(
+            self.name,
+            v,
+            (
+                *TUNED_PARAMETERS,
+                "friction_initial",
+                "friction_initial_sigma",
+                "friction_memory_s",
+                "min_speed_mps",
+            ),
+        )
         self.min_speed = sig["min_speed_mps"]
         self.friction_initial = sig["friction_initial"]
         self.friction_memory = sig["friction_memory_s"]
