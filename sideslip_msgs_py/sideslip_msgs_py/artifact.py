@@ -38,6 +38,7 @@ from .model_inputs import (
     ModelInputError,
     check_inputs,
     check_prior,
+    needs_observer,
     needs_vehicle,
     required_channels,
 )
@@ -138,6 +139,10 @@ class ModelMetadata:
     :class:`~.vehicle_description.VehicleDescription` as a dict), used when the model
     reads the vehicle and the deployment names none; None for a fleet model, which must
     be given the car at deployment."""
+    observer: dict[str, Any] | None = field(default=None, hash=False)
+    """Parameters of the ``ukf`` back-end (all but ``params_file``) that computed the
+    ``ukf.*`` inputs or prior in training; deployment runs the same filter with the car's
+    ``ukf`` params file. Required exactly when the model reads the observer."""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self) -> None:
@@ -195,9 +200,14 @@ class ModelMetadata:
         for name in ("training_data_digest", "created_utc"):
             if not isinstance(getattr(self, name), str):
                 raise fail(f"{name} must be a string, got {getattr(self, name)!r}")
-        for name in ("metrics", "pso", "provenance"):
+        if needs_observer(features, self.prior) != (self.observer is not None):
+            raise fail(
+                "observer (the UKF's parameters) must be given exactly when the inputs or "
+                f"the prior read the UKF observer (inputs {list(features)}, prior {self.prior})"
+            )
+        for name in ("metrics", "pso", "provenance", "observer"):
             v = getattr(self, name)
-            if v is None and name == "pso":
+            if v is None and name in ("pso", "observer"):
                 continue
             if not isinstance(v, dict):
                 raise fail(f"{name} must be a JSON object (dict), got {type(v).__name__}")
@@ -215,6 +225,11 @@ class ModelMetadata:
     def needs_vehicle(self) -> bool:
         """Whether the inputs or the prior read the car's nominal parameters."""
         return needs_vehicle(self.features, self.prior)
+
+    @property
+    def needs_observer(self) -> bool:
+        """Whether the inputs or the prior read the UKF observer's columns."""
+        return needs_observer(self.features, self.prior)
 
     @property
     def channels(self) -> tuple[str, ...]:

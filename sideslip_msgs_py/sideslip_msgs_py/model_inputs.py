@@ -10,11 +10,14 @@ Input columns (a model's ``features``) are of three kinds:
   vehicle-invariant (accelerations in g, rates scaled by speed, steering as a road-wheel
   angle) — :data:`DERIVED`; some need the vehicle's nominal parameters;
 * a conditioning input ``vehicle.<name>``: one of the car's nominal parameters
-  (:class:`~.vehicle_description.VehicleDescription`), constant over a run.
+  (:class:`~.vehicle_description.VehicleDescription`), constant over a run;
+* an observer input ``ukf.<name>`` (:data:`OBSERVER_COLUMNS`): what the estimator's UKF
+  reported after each sample, a column the caller computes beside the channels.
 
 A prior is a physics estimate of β over the window; a model with a prior predicts the
 residual β − prior, and β̂ = prior + residual (:data:`PRIORS`). A prior of sample T
-reads the window's rows T−N+1..T only, so training (over runs) and the estimator
+reads the window's rows T−N+1..T only (the ``ukf`` prior: the observer's β̂ of row T,
+itself recursive over everything before), so training (over runs) and the estimator
 (over its window) agree.
 
 Units: SI and radians; speeds below :data:`MIN_SPEED_MPS` are floored in the
@@ -51,6 +54,23 @@ CONDITIONING: Final[tuple[str, ...]] = (
     "vehicle.tire_rolling_radius_m",
 )
 """The nominal parameters a model may be conditioned on (what an owner can look up)."""
+OBSERVER_PREFIX: Final = "ukf."
+OBSERVER_COLUMNS: Final[tuple[str, ...]] = (
+    "ukf.beta_rad",
+    "ukf.road_friction",
+    "ukf.yaw_rate_innovation_radps",
+    "ukf.lateral_acceleration_innovation_mps2",
+)
+"""Observer inputs: what the estimator's ``ukf`` back-end reports after each sample: its
+β̂ [rad], its road-μ estimate [-], and the innovations (measured − predicted before the
+update) of the yaw rate [rad/s] and of a_y [m/s²], which show where the car leaves the
+filter's model; NaN where it gives none. A recursive filter, not a function of the
+window: the caller runs it over the samples and passes these columns with the channels
+(the trainer over a run, ``pso_lstm`` beside its window)."""
+OBSERVER_CHANNELS: Final[tuple[str, ...]] = (
+    "x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m",
+)  # fmt: skip
+"""The contract channels the ``ukf`` observer reads (the ``measurable`` ones)."""
 
 
 class ModelInputError(ContractError, ValueError):
@@ -149,6 +169,29 @@ INPUT_SETS: Final[dict[str, tuple[str, ...]]] = {
         "vehicle.mass_kg", "vehicle.wheelbase_m", "vehicle.front_weight_fraction",
         "vehicle.cg_height_m",
     ),
+    # No Y_v, anchored on the UKF: its β̂, μ̂ and innovations beside the
+    # measurable_invariant inputs, for a residual on the ukf prior (the network corrects
+    # what the observer's model misses, which its innovations show).
+    "measurable_observer": (
+        "x_v_mps", "x_a_g", "y_a_g", "centripetal_g", "beta_rate_radps",
+        "road_wheel_angle_rad", "understeer_angle_rad", "rear_kinematic_beta_rad",
+        *OBSERVER_COLUMNS,
+        "vehicle.mass_kg", "vehicle.wheelbase_m", "vehicle.front_weight_fraction",
+        "vehicle.cg_height_m",
+    ),
+    # measurable_observer without the car's parameters: the filter already has them,
+    # and a network that reads them can be led astray by a car outside the fleet.
+    "measurable_observer_signals": (
+        "x_v_mps", "x_a_g", "y_a_g", "centripetal_g", "beta_rate_radps",
+        "road_wheel_angle_rad", "understeer_angle_rad", "rear_kinematic_beta_rad",
+        *OBSERVER_COLUMNS,
+    ),
+    # Kinematics plus the UKF observer's β̂ and μ̂: two independent physics estimates
+    # (Y_v's and the car model's) for the network to weigh.
+    "paper_observer": (
+        "x_v_mps", "tan_beta_kinematic", "beta_rate_radps", "x_a_g", "y_a_g",
+        "yaw_rate_radps", "ukf.beta_rad", "ukf.road_friction",
+    ),
 }  # fmt: skip
 """Named input sets for ``sideslip-train --features``."""
 
@@ -164,16 +207,30 @@ def input_set(name: str) -> tuple[str, ...]:
 def check_inputs(names: Sequence[str]) -> tuple[str, ...]:
     """``names`` as a tuple, each a channel, a derived input or a conditioning input."""
     names = tuple(names)
-    known = set(CHANNELS) | set(DERIVED) | set(CONDITIONING)
+    known = set(CHANNELS) | set(DERIVED) | set(CONDITIONING) | set(OBSERVER_COLUMNS)
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ModelInputError(
             f"unknown model input(s) {unknown} (channels: {', '.join(CHANNELS)}; derived: "
-            f"{', '.join(DERIVED)}; conditioning: {', '.join(CONDITIONING)})"
+            f"{', '.join(DERIVED)}; conditioning: {', '.join(CONDITIONING)}; observer: "
+            f"{', '.join(OBSERVER_COLUMNS)})"
         )
     if len(set(names)) != len(names):
         raise ModelInputError(f"model inputs have duplicates: {list(names)}")
     return names
+
+
+def needs_observer(names: Sequence[str], prior: str = "none") -> bool:
+    """Whether these inputs (or this prior) read the UKF observer's columns."""
+    return any(n in OBSERVER_COLUMNS for n in names) or PRIORS[prior].needs_observer
+
+
+def _observer_column(c: Columns, name: str) -> FloatArray:
+    try:
+        return c[name]
+    except KeyError:
+        msg = f"{name} is the UKF observer's output: pass its column with the channels"
+        raise ModelInputError(msg) from None
 
 
 def needs_vehicle(names: Sequence[str], prior: str = "none") -> bool:
@@ -193,6 +250,8 @@ def required_channels(names: Sequence[str], prior: str = "none") -> tuple[str, .
             used.add(n)
         elif n in DERIVED:
             used.update(DERIVED[n].channels)
+        elif n in OBSERVER_COLUMNS:
+            used.update(OBSERVER_CHANNELS)
     return tuple(c for c in CHANNELS if c in used)
 
 
@@ -208,6 +267,8 @@ def input_matrix(
             out[:, j] = columns[n]
         elif n in DERIVED:
             out[:, j] = DERIVED[n].compute(columns, vehicle)
+        elif n in OBSERVER_COLUMNS:
+            out[:, j] = _observer_column(columns, n)
         else:
             out[:, j] = _vehicle(vehicle).value(n.removeprefix(VEHICLE_PREFIX))
     return out
@@ -226,6 +287,7 @@ class Prior:
     channels: tuple[str, ...]
     needs_vehicle: bool
     series: Callable[[Columns, int, float], FloatArray]
+    needs_observer: bool = False
 
 
 def _window_mean(v: FloatArray, n: int) -> FloatArray:
@@ -254,6 +316,12 @@ def _kinematic_window(c: Columns, n: int, dt_s: float) -> FloatArray:
     return np.arctan2(v_y, v_x)
 
 
+def _observer_beta(c: Columns, n: int, dt_s: float) -> FloatArray:
+    out = np.array(_observer_column(c, "ukf.beta_rad"), dtype=np.float64)
+    out[: n - 1] = np.nan
+    return out
+
+
 def _none(c: Columns, n: int, dt_s: float) -> FloatArray:
     return np.zeros(len(next(iter(c.values()))))
 
@@ -267,6 +335,14 @@ PRIORS: Final[dict[str, Prior]] = {
         ("x_v_mps", "y_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps"),
         False,
         _kinematic_window,
+    ),
+    "ukf": Prior(
+        "the UKF observer's β̂ at the window's last sample (the estimator's ukf back-end "
+        "with the car's nominal parameters; measurable channels only, no Y_v)",
+        OBSERVER_CHANNELS,
+        False,  # the car reaches the filter through its own params file
+        _observer_beta,
+        needs_observer=True,
     ),
 }
 
@@ -303,6 +379,8 @@ __all__ = [
     "CONDITIONING",
     "DERIVED",
     "INPUT_SETS",
+    "OBSERVER_CHANNELS",
+    "OBSERVER_COLUMNS",
     "PRIORS",
     "ModelInputError",
     "check_inputs",
@@ -311,6 +389,7 @@ __all__ = [
     "columns_of_rows",
     "input_matrix",
     "input_set",
+    "needs_observer",
     "needs_vehicle",
     "prior_of_window",
     "prior_series",

@@ -52,7 +52,16 @@ INT_NAMES = {
     "threads",
 }
 BOOL_NAMES = {"publish_clock", "loop", "ground_truth", "tyre_relaxation", "estimate_friction"}
-STR_NAMES = {"backend", "params_file", "scenario", "vehicle", "noise", "model_file", "vehicle_file"}
+STR_NAMES = {
+    "backend",
+    "params_file",
+    "scenario",
+    "vehicle",
+    "noise",
+    "model_file",
+    "vehicle_file",
+    "observer_params_file",
+}
 
 
 def _expected_type(full_name: str) -> type:

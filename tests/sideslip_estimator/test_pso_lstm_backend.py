@@ -199,6 +199,13 @@ def test_the_default_is_the_shipped_model_or_a_clear_error() -> None:
             PsoLstmBackend({}, WINDOW)
 
 
+def test_the_default_with_the_cars_ukf_file_is_the_model_anchored_on_the_ukf() -> None:
+    backend = PsoLstmBackend({"observer_params_file": "paper_sedan"}, WINDOW)
+    assert backend.model_id.startswith("pso_lstm(fleet_ukf_paper.safetensors (shipped)")
+    assert "observer ukf(paper_sedan)" in backend.model_id
+    assert backend.meta.needs_observer and not PsoLstmBackend({}, WINDOW).meta.needs_observer
+
+
 @pytest.mark.parametrize(
     ("values", "match"),
     [

@@ -236,6 +236,9 @@ def test_any_valid_shape_and_feature_list_round_trips(
         ({"metrics": {"r2": math.nan}}, r"metrics must be strict JSON"),
         ({"pso": {"x": object()}}, r"pso must be strict JSON"),
         ({"provenance": "cmd"}, r"provenance must be a JSON object"),
+        ({"prior": "ukf"}, r"observer \(the UKF's parameters\) must be given exactly when"),
+        ({"observer": {"min_speed_mps": 3.0}}, r"observer .* must be given exactly when"),
+        ({"prior": "ukf", "observer": "defaults"}, r"observer must be a JSON object"),
     ],
 )
 def test_invalid_metadata_is_refused_naming_the_field(changes: dict, match: str) -> None:
@@ -244,6 +247,15 @@ def test_invalid_metadata_is_refused_naming_the_field(changes: dict, match: str)
 
 
 # --- reader refusals: each names the file ---------------------------------------------------------
+
+
+def test_the_observers_settings_round_trip_with_a_model_anchored_on_it(tmp_path: Path) -> None:
+    meta = make_meta(prior="ukf", observer={"min_speed_mps": 3.0, "tyre_relaxation": True})
+    assert meta.needs_observer and not meta.needs_vehicle
+    tensors = random_tensors(meta)
+    write_artifact(tmp_path / "m.safetensors", tensors, meta)
+    _, back = read_artifact(tmp_path / "m.safetensors")
+    assert back == meta and back.observer == {"min_speed_mps": 3.0, "tyre_relaxation": True}
 
 
 def test_artifact_error_is_a_contract_error() -> None:

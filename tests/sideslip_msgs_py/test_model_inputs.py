@@ -31,6 +31,11 @@ def _columns(n: int, seed: int) -> dict[str, np.ndarray]:
         "y_a_mps2": 3.0 * np.sin(1.1 * t) + rng.normal(0, 0.1, n),
         "yaw_rate_radps": 0.15 * np.sin(1.1 * t) + rng.normal(0, 0.003, n),
         "stl_m": 0.05 * np.sin(1.1 * t),
+        # What a UKF would report beside the channels (the caller's column).
+        "ukf.beta_rad": 0.02 * np.sin(1.3 * t),
+        "ukf.road_friction": 0.9 + 0.05 * np.sin(0.2 * t),
+        "ukf.yaw_rate_innovation_radps": rng.normal(0, 0.003, n),
+        "ukf.lateral_acceleration_innovation_mps2": rng.normal(0, 0.2, n),
     }
 
 
@@ -110,6 +115,26 @@ def test_inputs_that_read_the_car_refuse_to_run_without_one():
     assert not mi.needs_vehicle(mi.INPUT_SETS["paper_kinematic"], "kinematic_window")
     with pytest.raises(mi.ModelInputError, match="nominal parameters"):
         mi.input_matrix(_columns(10, 0), ("vehicle.mass_kg",), None)
+
+
+def test_observer_inputs_and_prior_read_the_callers_columns():
+    cols = _columns(150, 4)
+    names = mi.INPUT_SETS["measurable_observer"]
+    assert mi.needs_observer(names) and mi.needs_observer(("x_v_mps",), "ukf")
+    assert not mi.needs_observer(mi.INPUT_SETS["measurable_invariant"], "none")
+    # The filter reads the car from its own params file, not the model's description.
+    assert not mi.needs_vehicle(("x_v_mps", "ukf.beta_rad"), "ukf")
+    assert "y_v_mps" not in mi.required_channels(names, "ukf")
+    x = mi.input_matrix(cols, names, CAR)
+    np.testing.assert_array_equal(x[:, names.index("ukf.beta_rad")], cols["ukf.beta_rad"])
+    prior = mi.prior_series(cols, "ukf", 100, DT)
+    assert np.isnan(prior[:99]).all()
+    np.testing.assert_array_equal(prior[99:], cols["ukf.beta_rad"][99:])
+    del cols["ukf.beta_rad"]
+    with pytest.raises(mi.ModelInputError, match=r"ukf\.beta_rad is the UKF observer's output"):
+        mi.input_matrix(cols, names, CAR)
+    with pytest.raises(mi.ModelInputError, match="UKF observer"):
+        mi.prior_series(cols, "ukf", 100, DT)
 
 
 def test_unknown_inputs_and_priors_are_refused_naming_them():

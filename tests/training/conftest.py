@@ -15,6 +15,12 @@ from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
 STEP_NS = 2_500_000  # 400 Hz
 
 
+@pytest.fixture(autouse=True)
+def _observer_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch):
+    """The UKF observer's disk cache in a per-session temporary folder, not ~/.cache."""
+    monkeypatch.setenv("SIDESLIP_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+
+
 def _make_arrays(
     n: int,
     *,

@@ -17,6 +17,7 @@ from sideslip_estimator.estimator import Estimator, EstimatorParams
 from sideslip_msgs_py.artifact import read_artifact
 from sideslip_msgs_py.model_inputs import INPUT_SETS
 from sideslip_msgs_py.vehicle_description import VehicleDescription
+from sideslip_training import observer
 from sideslip_training.cli import train_main
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import kinematic, predict_run
@@ -27,7 +28,11 @@ from .test_cli import TINY, _feed
 
 @pytest.mark.parametrize(
     ("features", "prior"),
-    [("paper_kinematic", "kinematic_window"), ("measurable_invariant", "none")],
+    [
+        ("paper_kinematic", "kinematic_window"),
+        ("measurable_invariant", "none"),
+        ("measurable_observer", "ukf"),
+    ],
 )
 def test_a_physics_model_runs_in_the_estimator_with_the_trainers_output(
     sim_bag_dir: Path, tmp_path: Path, features: str, prior: str
@@ -51,11 +56,31 @@ def test_a_physics_model_runs_in_the_estimator_with_the_trainers_output(
         path = tmp_path / "car.yaml"
         path.write_text(yaml.safe_dump(car.to_dict()))
         values["vehicle_file"] = str(path)
+    if meta.needs_observer:
+        assert meta.observer == observer.default_values()
+        path = tmp_path / "car.ukf.yaml"
+        path.write_text(yaml.safe_dump(observer.params_of_vehicle(run.run_metadata["vehicle"])))
+        values["observer_params_file"] = str(path)
+        assert np.isfinite(expected).all()  # the filter runs from the first sample on
     backend = create_backend("pso_lstm", values, meta.window_steps)
     est = Estimator(backend, EstimatorParams(window_steps=meta.window_steps, max_gap_s=1.0))
     got = _feed(est, run.samples)
     assert len(got) == len(expected)
-    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6, equal_nan=True)
+
+
+def test_an_observer_model_is_refused_without_the_cars_ukf_file(sim_bag_dir: Path, tmp_path: Path):
+    model = tmp_path / "obs.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_observer", "--prior", "ukf", "--out", str(model), *TINY]
+    assert train_main(args) == 0
+    car = tmp_path / "car.yaml"
+    runs, _ = load_runs([sim_bag_dir])
+    car.write_text(
+        yaml.safe_dump(VehicleDescription.from_mapping(runs[0].run_metadata["vehicle"]).to_dict())
+    )
+    with pytest.raises(BackendError, match="observer_params_file"):
+        create_backend("pso_lstm", {"model_file": str(model), "vehicle_file": str(car)}, 100)
 
 
 def test_a_residual_model_starts_from_its_prior(sim_bag_dir: Path, tmp_path: Path):

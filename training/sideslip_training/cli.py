@@ -82,14 +82,23 @@ def _train_parser() -> argparse.ArgumentParser:
         help="model inputs: paper (X_v, Y_v, X_a, Y_a, yaw rate, STL) and measurable (no "
         "Y_v) as measured; paper_kinematic (kinematic inputs only, no steering) and "
         "measurable_invariant (accelerations in g, road-wheel and understeer angles, the "
-        "car's mass, wheelbase, weight split and CG height as inputs)",
+        "car's mass, wheelbase, weight split and CG height as inputs); measurable_observer "
+        "(measurable_invariant plus the UKF observer's β̂ and road μ̂)",
     )
     p.add_argument(
         "--prior",
         default="none",
         choices=list(PRIORS),
-        help="physics estimate the network corrects (β̂ = prior + network): none, or "
-        "kinematic_window (the window's dead-reckoned atan2(Y_v, X_v); needs Y_v)",
+        help="physics estimate the network corrects (β̂ = prior + network): none, "
+        "kinematic_window (the window's dead-reckoned atan2(Y_v, X_v); needs Y_v), or ukf "
+        "(the estimator's UKF with the car's nominal parameters; measurable channels)",
+    )
+    p.add_argument(
+        "--observer-params",
+        type=Path,
+        metavar="UKF.yaml",
+        help="the car's ukf params file (python -m sideslip_sim.ukf_params) for bags that "
+        "record no car, when the inputs or the prior read the UKF observer",
     )
     p.add_argument(
         "--vehicle",
@@ -215,6 +224,18 @@ def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, log):
     else:
         train_runs, val_runs = split_runs(runs, prof.val_fraction, args.seed)
     _check_features(runs, spec.channels)
+    if spec.needs_observer:
+        from . import observer
+
+        assert spec.observer is not None
+        log(f"UKF observer over {len(runs)} run(s) (cached in {observer.cache_dir()})")
+        observer.precompute(
+            runs,
+            spec.observer,
+            spec.observer_params_file,
+            jobs=args.workers,
+            progress=not args.quiet,
+        )
     normalizer = Normalizer.fit(train_runs, spec, WINDOW_STEPS)
     train = WindowIndex.build(train_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
     val = WindowIndex.build(val_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
@@ -304,7 +325,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
             import_ray()
         run_dir = _check_out(args)
-        spec = InputSpec(features, args.prior, DT_S, vehicle)
+        observer_file = str(args.observer_params) if args.observer_params else None
+        spec = InputSpec(features, args.prior, DT_S, vehicle, None, observer_file)
         runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, spec, log)
         dt_s = sample_period_s(runs)
         if abs(dt_s / DT_S - 1.0) > 0.02 and spec.prior != "none":
@@ -323,6 +345,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         "train_config": asdict(base),
         "features": list(features),
         "prior": args.prior,
+        "observer": spec.observer,
         "train_bags": [r.name for r in train_runs],
         "val_bags": [r.name for r in val_runs],
         "data_digest": data_digest(runs),
@@ -339,6 +362,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             "data_digest",
             "features",
             "prior",
+            "observer",
             "train_bags",
             "val_bags",
             "normalizer",
@@ -394,6 +418,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         pso=pso_info,
         prior=spec.prior,
         vehicle=vehicle.to_dict() if vehicle is not None else None,
+        observer=dict(spec.observer) if spec.observer is not None else None,
         created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         provenance={
             "command": config["command"],

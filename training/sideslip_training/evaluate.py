@@ -93,16 +93,22 @@ def predict_run(
     run: Run,
     *,
     vehicle: VehicleDescription | None = None,
+    observer_params_file: str | None = None,
 ) -> FloatArray:
-    """β̂ [rad] for every sample with a full window, i.e. samples[window-1:].
+    """β̂ [rad] for every sample with a full window, i.e. samples[window-1:] (NaN where
+    an input is not finite, e.g. the UKF observer gives no estimate below its speed).
 
     ``vehicle``: the car, for a model that reads it, when the run's bag records none
-    (default: the bag's, else the one stored in the model).
+    (default: the bag's, else the one stored in the model); ``observer_params_file``:
+    the car's ``ukf`` params file, for a model that reads the UKF observer, when the
+    run's bag records no car.
     """
     fallback = vehicle
     if fallback is None and meta.vehicle is not None:
         fallback = VehicleDescription.from_mapping(meta.vehicle)
-    spec = InputSpec(meta.features, meta.prior, meta.dt_s, fallback)
+    spec = InputSpec(
+        meta.features, meta.prior, meta.dt_s, fallback, meta.observer, observer_params_file
+    )
     # The contract's z-score (float64, rounded once to float32), as the estimator does.
     x = zscore(spec.inputs(run), meta.feature_mean, meta.feature_std)
     w = meta.window_steps
@@ -114,7 +120,10 @@ def predict_run(
             chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
     prior = spec.prior_rad(run, w)[w - 1 :]
-    return out * meta.beta_std + meta.beta_mean + prior
+    # A window with a non-finite input gives no estimate (as in training and the node).
+    bad = np.concatenate([[0], np.cumsum(~np.isfinite(x).all(axis=1))])
+    clean = bad[w:] - bad[:-w] == 0
+    return np.where(clean, out * meta.beta_std + meta.beta_mean + prior, np.nan)
 
 
 def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:

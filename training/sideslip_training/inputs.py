@@ -4,14 +4,15 @@
 :mod:`sideslip_msgs_py.model_inputs`) and the prior; it computes both over a whole run
 with the same functions the estimator applies to its window. A run's car comes from its
 bag's metadata (the simulator records it) or, for a recording without it, from the
-spec's ``vehicle``.
+spec's ``vehicle``. A model reading the UKF observer (``ukf.*`` inputs, ``ukf`` prior)
+gets its columns from :mod:`.observer` (the filter with ``observer`` values, cached).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -31,12 +32,16 @@ FloatArray = npt.NDArray[np.float64]
 @dataclass(frozen=True)
 class InputSpec:
     """Inputs, prior and sample period of a model; ``vehicle`` is the car of runs whose
-    bags do not record one (a real recording)."""
+    bags do not record one (a real recording); ``observer`` the UKF's parameter values
+    for a model that reads it (None: the back-end's defaults), ``observer_params_file``
+    its ``ukf`` params file for runs whose bags record no car."""
 
     features: tuple[str, ...]
     prior: str = "none"
     dt_s: float = DT_S
     vehicle: VehicleDescription | None = None
+    observer: Mapping[str, Any] | None = None
+    observer_params_file: str | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -44,6 +49,13 @@ class InputSpec:
             model_inputs.check_prior(self.prior)
         except model_inputs.ModelInputError as err:
             raise DatasetError(str(err)) from None
+        if self.needs_observer:
+            from . import observer
+
+            values = observer.check_values(self.observer or {})
+            object.__setattr__(self, "observer", values)
+        elif self.observer is not None:
+            raise DatasetError("observer values given for a model that does not read the UKF")
 
     @classmethod
     def of(cls, spec: InputSpec | Sequence[str]) -> InputSpec:
@@ -53,6 +65,10 @@ class InputSpec:
     @property
     def needs_vehicle(self) -> bool:
         return model_inputs.needs_vehicle(self.features, self.prior)
+
+    @property
+    def needs_observer(self) -> bool:
+        return model_inputs.needs_observer(self.features, self.prior)
 
     @property
     def channels(self) -> tuple[str, ...]:
@@ -75,12 +91,20 @@ class InputSpec:
             )
         return self.vehicle
 
+    def columns(self, run: Run) -> dict[str, FloatArray]:
+        """The run's channel columns, and the observer's when the model reads it."""
+        columns = model_inputs.columns_of(run.samples, self.channels)
+        if self.needs_observer:
+            from . import observer
+
+            assert self.observer is not None  # set in __post_init__
+            columns.update(observer.columns(run, self.observer, self.observer_params_file))
+        return columns
+
     def inputs(self, run: Run) -> FloatArray:
         """(S, F) float64 input columns of the run (units of model_inputs)."""
-        columns = model_inputs.columns_of(run.samples, self.channels)
-        return model_inputs.input_matrix(columns, self.features, self.run_vehicle(run))
+        return model_inputs.input_matrix(self.columns(run), self.features, self.run_vehicle(run))
 
     def prior_rad(self, run: Run, window_steps: int) -> FloatArray:
         """(S,) β_prior [rad] of every sample (NaN before the first full window)."""
-        columns = model_inputs.columns_of(run.samples, self.channels)
-        return model_inputs.prior_series(columns, self.prior, window_steps, self.dt_s)
+        return model_inputs.prior_series(self.columns(run), self.prior, window_steps, self.dt_s)

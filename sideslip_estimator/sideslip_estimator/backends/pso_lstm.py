@@ -24,7 +24,14 @@ same functions compute them here as in training. A model that reads the car take
 from ``pso_lstm.vehicle_file`` (a description YAML, see
 :class:`~sideslip_msgs_py.vehicle_description.VehicleDescription`, or a simulator
 vehicle file), else from the car stored in the model; without either it is refused at
-start-up.
+start-up. A model that reads the UKF observer (``ukf.*`` inputs or the ``ukf`` prior:
+a residual on the UKF) runs the ``ukf`` back-end beside its window, on every sample,
+with the filter settings stored in the model and the car's ``ukf`` params file
+(``pso_lstm.observer_params_file``, required for such a model); a window in which the
+filter gave no estimate for some row (below its speed, after a restart) gives none.
+With ``model_file`` empty the default follows what is given: ``fleet_ukf_paper`` (the
+kinematic inputs plus the UKF) when ``observer_params_file`` names the car's file, else
+``fleet_lstm_paper`` (the kinematic inputs only; nothing about the car needed).
 
 Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
@@ -37,6 +44,7 @@ the registry (and the kinematic and single-track back-ends) work without it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -52,7 +60,12 @@ from sideslip_msgs_py.artifact import (
     denormalize_beta,
     read_artifact,
 )
-from sideslip_msgs_py.model_inputs import columns_of_rows, input_matrix, prior_of_window
+from sideslip_msgs_py.model_inputs import (
+    OBSERVER_COLUMNS,
+    columns_of_rows,
+    input_matrix,
+    prior_of_window,
+)
 from sideslip_msgs_py.parameters import ParameterSpec
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
@@ -60,7 +73,12 @@ from .base import BackendError, Estimate, parameter_values
 
 SHIPPED_DIR: Final = "data/models"
 SHIPPED_MODEL: Final = f"{SHIPPED_DIR}/fleet_lstm_paper.safetensors"
-"""The default model, relative to the sideslip_estimator package."""
+"""The default model, relative to the sideslip_estimator package: needs nothing but the
+measurements (no car parameters)."""
+SHIPPED_OBSERVER_MODEL: Final = f"{SHIPPED_DIR}/fleet_ukf_paper.safetensors"
+"""The default model when the car's ``ukf`` params file is given
+(``observer_params_file``): the same inputs plus the UKF observer, more accurate where
+the car's parameters are right."""
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
@@ -87,9 +105,17 @@ def shipped_models() -> list[str]:
     )
 
 
-def _read_model(model_file: str) -> tuple[dict[str, np.ndarray], ModelMetadata, str]:
+def default_model(observer_params_file: str) -> str:
+    """The shipped default (relative to the package) for what the deployment gives: with
+    the car's ukf params file :data:`SHIPPED_OBSERVER_MODEL`, else :data:`SHIPPED_MODEL`."""
+    return SHIPPED_OBSERVER_MODEL if observer_params_file else SHIPPED_MODEL
+
+
+def _read_model(
+    model_file: str, default: str = SHIPPED_MODEL
+) -> tuple[dict[str, np.ndarray], ModelMetadata, str]:
     """Tensors, metadata and a short label of the model ``model_file`` names: a path, the
-    name of a shipped model, or "" for the default shipped one."""
+    name of a shipped model, or "" for ``default`` (a shipped path)."""
     try:
         if model_file and ("/" in model_file or model_file.endswith(".safetensors")):
             path = Path(model_file).expanduser()
@@ -101,12 +127,12 @@ def _read_model(model_file: str) -> tuple[dict[str, np.ndarray], ModelMetadata, 
                 f"shipped model (shipped: {', '.join(shipped_models())})"
             )
             raise BackendError(msg)
-        relative = f"{SHIPPED_DIR}/{model_file}.safetensors" if model_file else SHIPPED_MODEL
+        relative = f"{SHIPPED_DIR}/{model_file}.safetensors" if model_file else default
         ref = resources.files("sideslip_estimator").joinpath(relative)
         if not ref.is_file():
             msg = (
                 f"pso_lstm.model_file: no model is shipped yet (expected "
-                f"sideslip_estimator/{SHIPPED_MODEL}); train one with `sideslip-train` "
+                f"sideslip_estimator/{relative}); train one with `sideslip-train` "
                 f"(see its --help) and set pso_lstm.model_file:=/path/to/model.safetensors"
             )
             raise BackendError(msg)
@@ -127,7 +153,9 @@ class PsoLstmBackend:
             "",
             "Model artifact (.safetensors written by sideslip-train), or the name of a "
             "shipped model (sideslip_estimator/data/models/NAME.safetensors); empty = the "
-            f"shipped default, sideslip_estimator/{SHIPPED_MODEL}.",
+            "shipped default: fleet_ukf_paper when observer_params_file is set (kinematics "
+            "plus the UKF with the car's parameters), else fleet_lstm_paper (kinematics "
+            "only, no car parameters).",
         ),
         ParameterSpec(
             "vehicle_file",
@@ -137,6 +165,13 @@ class PsoLstmBackend:
             "cg_to_front_axle_m, cg_height_m, track_m, stl_per_road_wheel_angle_m_per_rad, "
             "tire_rolling_radius_m; or a simulator vehicle file. Empty = the car stored in "
             "the model, if any.",
+        ),
+        ParameterSpec(
+            "observer_params_file",
+            "",
+            "The car's ukf params file (a shipped name or a YAML path written by `python -m "
+            "sideslip_sim.ukf_params VEHICLE`), for a model that reads the UKF observer "
+            "(ukf.* inputs or the ukf prior); unused otherwise.",
         ),
         ParameterSpec(
             "threads",
@@ -151,7 +186,8 @@ class PsoLstmBackend:
         threads = int(v["threads"])
         if threads < 1:
             raise BackendError(f"pso_lstm.threads must be >= 1, got {threads}")
-        tensors, meta, label = _read_model(str(v["model_file"]))
+        observer_file = str(v["observer_params_file"])
+        tensors, meta, label = _read_model(str(v["model_file"]), default_model(observer_file))
         if window_steps != meta.window_steps:
             msg = (
                 f"pso_lstm.model_file {label}: the model reads {meta.window_steps}-step windows "
@@ -161,6 +197,8 @@ class PsoLstmBackend:
             raise BackendError(msg)
         self._vehicle = _vehicle_for(meta, str(v["vehicle_file"]), label)
         self._channels = meta.channels
+        self._observer = _observer_for(meta, observer_file, label, window_steps)
+        self._observed: deque[tuple[float, ...]] = deque(maxlen=window_steps)
 
         torch = _import_torch()
         torch.set_num_threads(threads)
@@ -175,7 +213,9 @@ class PsoLstmBackend:
         self.variance_rad2 = sigma * sigma
         self.model_id = (
             f"pso_lstm({label}: {meta.architecture} {meta.layers}x{meta.hidden_units}, "
-            f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]})"
+            f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}"
+            + (f", observer {self._observer.model_id}" if self._observer is not None else "")
+            + ")"
         )
 
         # The network, rebuilt from the metadata; the weights are loaded by name.
@@ -208,15 +248,30 @@ class PsoLstmBackend:
         self._input_np = self._input.numpy()
 
     def reset(self) -> None:
-        """Stateless: every estimate reads the whole window afresh."""
+        """The network reads every window afresh; only the observer (if any) has state."""
+        if self._observer is not None:
+            self._observer.reset()
+            self._observed.clear()
 
     def update(
         self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
     ) -> Estimate | None:
+        if self._observer is not None:
+            # The filter sees every sample, also while the window fills.
+            seen = self._observer.update(rows, stamps_ns)
+            self._observed.append(self._observer.observer_row(seen))
         if rows.shape[0] < self.window_steps:
             return None
         window = rows[-self.window_steps :]
         columns = columns_of_rows(window, self._channels)
+        if self._observer is not None:
+            if len(self._observed) < self.window_steps:
+                return None
+            observed = np.array(self._observed)
+            if not np.isfinite(observed).all():
+                return None
+            for j, name in enumerate(OBSERVER_COLUMNS):
+                columns[name] = observed[:, j]
         x = self._scratch
         x[:] = input_matrix(columns, self.meta.features, self._vehicle)
         prior = 0.0
@@ -259,6 +314,27 @@ def _vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleD
         f"({', '.join(meta.features)}); set pso_lstm.vehicle_file:=/path/to/car.yaml"
     )
     raise BackendError(msg)
+
+
+def _observer_for(meta: ModelMetadata, params_file: str, label: str, window_steps: int) -> Any:
+    """The ``ukf`` back-end a model reads (its stored settings, the car's params file);
+    None for a model that reads no observer."""
+    if not meta.needs_observer:
+        return None
+    if not params_file:
+        msg = (
+            f"pso_lstm.model_file {label} is anchored on the UKF observer; set "
+            "pso_lstm.observer_params_file:=/path/to/car.ukf.yaml (written by `python -m "
+            "sideslip_sim.ukf_params VEHICLE`)"
+        )
+        raise BackendError(msg)
+    from .ukf import UkfBackend
+
+    assert meta.observer is not None  # ModelMetadata checks it
+    try:
+        return UkfBackend({**meta.observer, "params_file": params_file}, window_steps)
+    except BackendError as err:
+        raise BackendError(f"pso_lstm.observer_params_file: {err}") from None
 
 
 def _prefixed(torch: Any, tensors: Mapping[str, np.ndarray], prefix: str) -> dict[str, Any]:

@@ -56,6 +56,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.features import channel_indices
+from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
 from sideslip_msgs_py.parameters import ParameterSpec
 
 from .base import BackendError, Estimate, parameter_values, positive_values
@@ -66,6 +67,7 @@ X_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
 )
 
 _BASE_STATE: Final = ("v_x_mps", "v_y_mps", "yaw_rate_radps")
+_NO_OBSERVATION: Final = (math.nan,) * len(OBSERVER_COLUMNS)
 MAX_SUBSTEP_S: Final = 0.005
 """Longest integration step [s]: a longer dt (dropped samples) is split into sub-steps."""
 MAX_GAP_S: Final = 0.5
@@ -386,6 +388,17 @@ class UkfBackend:
     def state(self) -> dict[str, float]:
         """The filter's current state by name (:attr:`state_names`), for tools and tests."""
         return {n: float(v) for n, v in zip(self.state_names, self._ukf.x, strict=True)}
+
+    def observer_row(self, estimate: Estimate | None) -> tuple[float, ...]:
+        """What a model anchored on this filter reads after an update that gave
+        ``estimate``, in :data:`~sideslip_msgs_py.model_inputs.OBSERVER_COLUMNS` order:
+        β̂ [rad], road μ̂ [-] (``friction_initial`` without the friction state), and the
+        innovations of the yaw rate [rad/s] and a_y [m/s²]; NaN for no estimate."""
+        if estimate is None:
+            return _NO_OBSERVATION
+        mu = self.friction_initial if self._i_mu < 0 else float(self._ukf.x[self._i_mu])
+        innovation = self._ukf.y
+        return (estimate.beta_rad, mu, float(innovation[0]), float(innovation[1]))
 
     @property
     def state_sigma(self) -> dict[str, float]:

@@ -1,0 +1,67 @@
+"""The UKF observer's columns for models anchored on it: what the estimator's ukf back-end
+gives sample by sample, cached by content, from the bag's car or a given params file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
+from sideslip_training import observer
+from sideslip_training.dataset import DatasetError, load_runs
+from sideslip_training.inputs import InputSpec
+
+
+def test_columns_are_the_ukf_back_ends_estimates_and_are_cached(sim_bag_dir: Path):
+    from sideslip_estimator.backends import create_backend
+
+    runs, _ = load_runs([sim_bag_dir])
+    run = runs[0]
+    values = observer.default_values()
+    first = observer.columns(run, values)
+    assert set(first) == set(OBSERVER_COLUMNS)
+    assert all(len(v) == len(run.samples) for v in first.values())
+    assert np.isfinite(first["ukf.beta_rad"]).all()
+    # What the back-end itself gives on the same rows, one sample at a time.
+    params = observer.params_of_vehicle(run.run_metadata["vehicle"])
+    path = Path(observer.cache_dir()).parent / "car.ukf.yaml"
+    path.write_text(yaml.safe_dump(params))
+    ukf = create_backend("ukf", {**values, "params_file": str(path)}, 100)
+    s = run.samples
+    rows = np.column_stack(
+        [s.x_v_mps, s.y_v_mps, s.x_a_mps2, s.y_a_mps2, s.yaw_rate_radps, s.stl_m]
+    )
+    for i in range(50):
+        got = ukf.update(rows[: i + 1], s.stamp_ns[: i + 1])
+        assert got is not None and got.beta_rad == first["ukf.beta_rad"][i]
+
+    cached = sorted(observer.cache_dir().glob("*.npz"))
+    again = observer.columns(run, values)
+    assert sorted(observer.cache_dir().glob("*.npz")) == cached  # read, not recomputed
+    for c in OBSERVER_COLUMNS:
+        np.testing.assert_array_equal(again[c], first[c])
+    # Other filter settings are another entry.
+    other = observer.columns(run, {**values, "estimate_friction": False})
+    assert len(list(observer.cache_dir().glob("*.npz"))) == len(cached) + 1
+    assert np.all(other["ukf.road_friction"] == values["friction_initial"])
+
+
+def test_a_recording_without_a_car_needs_the_ukf_params_file(make_arrays, write_arrays):
+    bag = write_arrays("real_car", make_arrays(300))
+    runs, _ = load_runs([bag])
+    spec = InputSpec(("x_v_mps", "ukf.beta_rad"), "ukf")
+    with pytest.raises(DatasetError, match="give the car's ukf params file"):
+        spec.inputs(runs[0])
+
+
+def test_observer_values_are_the_ukf_back_ends_parameters():
+    assert "params_file" not in observer.default_values()
+    with pytest.raises(DatasetError, match="params_file is per car"):
+        observer.check_values({"params_file": "paper_sedan"})
+    with pytest.raises(DatasetError, match="unknown parameter"):
+        observer.check_values({"min_speed": 3.0})
+    with pytest.raises(DatasetError, match="observer values given"):
+        InputSpec(("x_v_mps",), "none", observer={"min_speed_mps": 3.0})

@@ -1,0 +1,219 @@
+"""The UKF observer's outputs over a whole run, for models anchored on it.
+
+A model whose inputs or prior read ``ukf.*`` columns
+(:data:`sideslip_msgs_py.model_inputs.OBSERVER_COLUMNS`) needs, for every sample of a
+run, what the estimator's ``ukf`` back-end reports after that sample. Here the back-end
+runs inside the estimator core exactly as the node and the ``pso_lstm`` back-end run it
+(same checks, same window restarts, one sample at a time), with the car's true nominal
+parameters (from the bag's vehicle record) or a given ``ukf`` params file (a real
+recording). Values: the parameters of the ``ukf`` back-end other than ``params_file``,
+stored in the model file (``ModelMetadata.observer``) so deployment runs the same filter.
+
+The filter costs about 0.3 ms per sample in Python, so the columns of a run are cached
+on disk, keyed by a digest of the samples, the params file's contents and the values
+(``$SIDESLIP_CACHE`` or ``~/.cache/sideslip``/observer); :func:`precompute` fills the
+cache for many runs in worker processes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import sys
+import tempfile
+from collections.abc import Mapping, Sequence
+from concurrent import futures
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
+
+from .config import WINDOW_STEPS
+from .dataset import DatasetError
+
+if TYPE_CHECKING:
+    from .dataset import Run
+
+FloatArray = npt.NDArray[np.float64]
+BACKEND: Final = "ukf"
+CACHE_VERSION: Final = 2
+
+
+def default_values() -> dict[str, Any]:
+    """The ``ukf`` back-end's default parameters, ``params_file`` left out."""
+    from sideslip_estimator.backends import BACKENDS
+    from sideslip_estimator.backends.base import parameter_values
+
+    values = parameter_values(BACKEND, BACKENDS[BACKEND].parameters, {})
+    del values["params_file"]
+    return values
+
+
+def check_values(values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` completed with the back-end's defaults and checked by its types."""
+    from sideslip_estimator.backends import BACKENDS, BackendError
+    from sideslip_estimator.backends.base import parameter_values
+
+    if "params_file" in values:
+        raise DatasetError("observer values: params_file is per car, not a model setting")
+    try:
+        out = parameter_values(BACKEND, BACKENDS[BACKEND].parameters, dict(values))
+    except BackendError as err:
+        raise DatasetError(f"observer values: {err}") from None
+    del out["params_file"]
+    return out
+
+
+def params_of_vehicle(vehicle: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``ukf`` params file contents of a simulated car (its true nominal values)."""
+    from .benchmark_estimators import nominal_parameters
+
+    return nominal_parameters(BACKEND, vehicle)
+
+
+def run_params(run: Run, params_file: str | None) -> tuple[dict[str, Any], float]:
+    """(``ukf`` params file contents, steering limit [m]) for ``run``: from its bag's
+    vehicle record, else from ``params_file`` (a recording of a real car)."""
+    from sideslip_estimator.inputs import InputLimits
+
+    from .benchmark_estimators import steering_limit_m
+
+    vehicle = run.run_metadata.get("vehicle")
+    if isinstance(vehicle, Mapping):
+        return params_of_vehicle(vehicle), steering_limit_m(vehicle)
+    if params_file is None:
+        raise DatasetError(
+            f"{run.name}: the model reads the UKF observer, but the bag records no vehicle; "
+            "give the car's ukf params file"
+        )
+    try:
+        data = yaml.safe_load(Path(params_file).read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise DatasetError(f"observer params file {params_file}: cannot read ({err})") from None
+    return dict(data), InputLimits().stl_m
+
+
+def _digest(run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float) -> str:
+    h = hashlib.sha256()
+    key = {"v": CACHE_VERSION, "params": params, "values": values, "stl": stl}
+    h.update(json.dumps(key, sort_keys=True, default=str).encode())
+    s = run.samples
+    for c in ("stamp_ns", "x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m"):
+        h.update(np.ascontiguousarray(getattr(s, c)).tobytes())
+    return h.hexdigest()[:24]
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("SIDESLIP_CACHE") or Path.home() / ".cache" / "sideslip"
+    return Path(root) / "observer"
+
+
+def compute(
+    run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl_limit_m: float
+) -> dict[str, FloatArray]:
+    """The observer columns of every sample of ``run`` (NaN where the filter gives none)."""
+    from sideslip_estimator.backends import create_backend
+    from sideslip_estimator.estimator import Estimator, EstimatorParams
+    from sideslip_estimator.inputs import InputLimits
+    from sideslip_estimator.replay import replay, replay_columns
+
+    from .benchmark_estimators import params_yaml
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "observer.ukf.yaml"
+        path.write_text(params_yaml(BACKEND, str(params.get("name", "car")), params))
+        ukf = create_backend(BACKEND, {**values, "params_file": str(path)}, WINDOW_STEPS)
+    recorder = Recorder(ukf)
+    est = Estimator(
+        recorder, EstimatorParams(window_steps=WINDOW_STEPS, limits=InputLimits(stl_m=stl_limit_m))
+    )
+    replay(est, replay_columns(run.samples))
+    return recorder.columns(run.samples.stamp_ns)
+
+
+class Recorder:
+    """A ``ukf`` back-end that remembers its output after every sample, by stamp."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.model_id = inner.model_id
+        self._rows: dict[int, tuple[float, ...]] = {}
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+    def update(self, rows: FloatArray, stamps_ns: npt.NDArray[np.int64]) -> Any:
+        out = self.inner.update(rows, stamps_ns)
+        self._rows[int(stamps_ns[-1])] = self.inner.observer_row(out)
+        return out
+
+    def columns(self, stamps_ns: npt.NDArray[np.int64]) -> dict[str, FloatArray]:
+        table = np.full((len(stamps_ns), len(OBSERVER_COLUMNS)), np.nan)
+        for i, stamp in enumerate(stamps_ns.tolist()):
+            got = self._rows.get(int(stamp))
+            if got is not None:
+                table[i] = got
+        return {c: table[:, j].copy() for j, c in enumerate(OBSERVER_COLUMNS)}
+
+
+def columns(
+    run: Run, values: Mapping[str, Any], params_file: str | None = None
+) -> dict[str, FloatArray]:
+    """The observer columns of ``run``, from the disk cache when there."""
+    params, stl = run_params(run, params_file)
+    path = cache_dir() / f"{_digest(run, params, values, stl)}.npz"
+    if path.exists():
+        try:
+            with np.load(path) as data:
+                got = {c: data[c] for c in OBSERVER_COLUMNS}
+            if all(len(v) == len(run.samples.stamp_ns) for v in got.values()):
+                return got
+        except (OSError, KeyError, ValueError):
+            pass  # a damaged cache entry: compute it again
+    out = compute(run, params, values, stl)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, **out)
+    tmp.replace(path)
+    return out
+
+
+def _fill(run: Run, values: Mapping[str, Any], params_file: str | None) -> None:
+    columns(run, values, params_file)
+
+
+def precompute(
+    runs: Sequence[Run],
+    values: Mapping[str, Any],
+    params_file: str | None = None,
+    *,
+    jobs: int = 1,
+    progress: bool = True,
+) -> None:
+    """Fill the cache for ``runs`` with ``jobs`` worker processes (fork)."""
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=len(runs), unit="run", desc="UKF observer", disable=not progress, file=sys.stderr
+    )
+    try:
+        if jobs <= 1 or len(runs) <= 1:
+            for r in runs:
+                _fill(r, values, params_file)
+                bar.update()
+            return
+        ctx = multiprocessing.get_context("fork")
+        with futures.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            pending = [pool.submit(_fill, r, values, params_file) for r in runs]
+            for fut in futures.as_completed(pending):
+                fut.result()
+                bar.update()
+    finally:
+        bar.close()
