@@ -153,6 +153,34 @@ def test_evaluate_refuses_a_file_that_is_not_a_model(sim_bag_dir, tmp_path, caps
     assert str(bad) in capsys.readouterr().err
 
 
+def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(
+    make_arrays, write_arrays, tmp_path, capsys
+):
+    bags = tmp_path / "bags"
+    for i in range(3):
+        write_arrays(f"r{i}", make_arrays(800, seed=i), folder=bags)
+    model = tmp_path / "m.safetensors"
+    args = ["--data", str(bags), "--model", "lstm", "--hidden-units", "4", "--out", str(model)]
+    assert train_main([*args, *TINY]) == 0
+    a = make_arrays(600, seed=7)
+    cols = dict(vars(a))
+    cols["y_v_mps"] = cols["y_v_mps"].copy()
+    cols["y_v_mps"][300:305] = np.nan  # a sensor dropout inside the run
+    test = tmp_path / "test"
+    write_arrays("dropout", SampleArrays(**cols), folder=test)
+    capsys.readouterr()
+    out = tmp_path / "report"
+    assert evaluate_main(["--model", str(model), "--data", str(test), "--out", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert "nan" not in table.lower()
+    assert "Samples left out" in table and "Kinematic (raw): 5" in table
+    # The network gives no estimate for the 104 windows that hold a NaN row.
+    assert "LSTM: 104" in table
+    results = json.loads((out / "metrics.json").read_text())["results"]
+    assert all(math.isfinite(r["mae"]) for r in results)
+    assert {r["excluded"] for r in results} == {5, 24, 104}
+
+
 def test_resume_refuses_another_run_s_data(
     sim_bag_dir, make_arrays, write_arrays, tmp_path, capsys
 ):

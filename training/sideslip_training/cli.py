@@ -25,7 +25,7 @@ import numpy as np
 from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
 from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS, input_set
-from sideslip_msgs_py.vehicle_description import VehicleDescription
+from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from . import __version__
 from .config import DT_S, WINDOW_STEPS, TrainProfile, profile
@@ -572,6 +572,19 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="write into an existing --out")
     p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
     p.add_argument("--title", default="", help="heading of the markdown table")
+    p.add_argument(
+        "--vehicle",
+        type=Path,
+        help="nominal parameters (YAML) of the car of bags that record none, for models "
+        "that read the car",
+    )
+    p.add_argument(
+        "--observer-params",
+        type=Path,
+        metavar="UKF.yaml",
+        help="the car's ukf params file for bags that record none, for models that read "
+        "the UKF observer",
+    )
     return p
 
 
@@ -623,7 +636,18 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
     except (CliError, ArtifactError, DatasetError, OSError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    traces = evaluate_runs(runs, models, window_steps=windows.pop(), smoothing_steps=args.smoothing)
+    try:
+        traces = evaluate_runs(
+            runs,
+            models,
+            window_steps=windows.pop(),
+            smoothing_steps=args.smoothing,
+            vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
+            observer_params_file=str(args.observer_params) if args.observer_params else None,
+        )
+    except (DatasetError, VehicleDescriptionError) as err:
+        print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     md = table_markdown(traces, args.title)
     print(md)
     if args.out is not None:
@@ -637,16 +661,19 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             "data": args.data,
             "smoothing_steps": args.smoothing,
             "results": [
-                {"scenario": t.scenario, "estimator": t.estimator, **asdict(t.metrics)}
+                {
+                    "scenario": t.scenario,
+                    "estimator": t.estimator,
+                    # Strict JSON: an undefined metric (R² of straight driving) is null.
+                    **{
+                        k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                        for k, v in asdict(t.metrics).items()
+                    },
+                }
                 for t in traces
             ],
         }
         (args.out / "metrics.json").write_text(
-            json.dumps(
-                summary,
-                indent=2,
-                default=lambda v: None if isinstance(v, float) and math.isnan(v) else v,
-            )
-            + "\n"
+            json.dumps(summary, indent=2, allow_nan=False) + "\n"
         )
     return 0

@@ -34,17 +34,27 @@ PREDICT_BATCH = 4096
 
 @dataclass(frozen=True)
 class Metrics:
-    """Errors of β̂ − β in degrees (R² dimensionless), over ``n`` samples."""
+    """Errors of β̂ − β in degrees (R² dimensionless), over the ``n`` samples where both
+    are finite; ``excluded`` samples were not (NaN when ``n`` is 0)."""
 
     mae: float
     me: float
     rmse: float
     r2: float
     n: int
+    excluded: int = 0
 
 
 def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:
+    """Metrics over the samples where estimate and reference are finite: an estimator
+    that gives none for some samples (a filter below its speed, a NaN in a bag) is
+    scored where it gives one, and the rest is counted, never averaged in."""
     est, ref = np.degrees(estimate_rad), np.degrees(reference_rad)
+    finite = np.isfinite(est) & np.isfinite(ref)
+    excluded = int(finite.size - np.count_nonzero(finite))
+    if not finite.any():
+        return Metrics(math.nan, math.nan, math.nan, math.nan, 0, excluded)
+    est, ref = est[finite], ref[finite]
     err = est - ref
     ss_tot = float(np.sum((ref - ref.mean()) ** 2))
     r2 = 1.0 - float(np.sum(err**2)) / ss_tot if ss_tot > 0 else math.nan
@@ -54,7 +64,13 @@ def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:
         rmse=float(np.sqrt(np.mean(err**2))),
         r2=r2,
         n=int(err.size),
+        excluded=excluded,
     )
+
+
+def _num(x: float, spec: str) -> str:
+    """``x`` formatted, or "n/a" when it is not finite (no NaN in a table)."""
+    return format(x, spec) if math.isfinite(x) else "n/a"
 
 
 @dataclass(frozen=True)
@@ -147,8 +163,12 @@ def evaluate_runs(
     window_steps: int,
     smoothing_steps: int = 20,
     dt_s: float = 0.0025,
+    vehicle: VehicleDescription | None = None,
+    observer_params_file: str | None = None,
 ) -> list[Trace]:
-    """Traces of every estimator on every run: baselines first, then the models."""
+    """Traces of every estimator on every run: baselines first, then the models
+    (``vehicle``, ``observer_params_file``: the car of runs whose bags record none, for
+    models that read it; see :func:`predict_run`)."""
     traces = []
     for run in runs:
         ref = run.samples.beta_rad()[window_steps - 1 :]
@@ -163,7 +183,18 @@ def evaluate_runs(
         for name, model, meta in models:
             if meta.window_steps != window_steps:
                 raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
-            estimators.append((name, predict_run(model, meta, run)))
+            estimators.append(
+                (
+                    name,
+                    predict_run(
+                        model,
+                        meta,
+                        run,
+                        vehicle=vehicle,
+                        observer_params_file=observer_params_file,
+                    ),
+                )
+            )
         for name, est in estimators:
             traces.append(Trace(run.name, name, t, est, ref))
     return traces
@@ -184,33 +215,48 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
     out.write("| Scenario | Model | MAE [deg] | ME [deg] | RMSE [deg] | R² |\n")
     out.write("|---|---|---|---|---|---|\n")
     last = None
-    for scen, name, m in _rows(traces):
+    rows = _rows(traces)
+    for scen, name, m in rows:
         label = scen if scen != last else ""
         last = scen
-        out.write(f"| {label} | {name} | {m.mae:.3f} | {m.me:+.3f} | {m.rmse:.3f} | {m.r2:.3f} |\n")
+        out.write(
+            f"| {label} | {name} | {_num(m.mae, '.3f')} | {_num(m.me, '+.3f')} | "
+            f"{_num(m.rmse, '.3f')} | {_num(m.r2, '.3f')} |\n"
+        )
     for name in dict.fromkeys(t.estimator for t in traces):
         ms = [t.metrics for t in traces if t.estimator == name]
         out.write(
-            f"| mean | {name} | {np.mean([m.mae for m in ms]):.3f} | "
-            f"{np.mean([m.me for m in ms]):+.3f} | {np.mean([m.rmse for m in ms]):.3f} | "
-            f"{_mean_r2(ms)} |\n"
+            f"| mean | {name} | {_mean(ms, 'mae', '.3f')} | {_mean(ms, 'me', '+.3f')} | "
+            f"{_mean(ms, 'rmse', '.3f')} | {_mean(ms, 'r2', '.3f')} |\n"
+        )
+    excluded = {name: 0 for _, name, _ in rows}
+    for _, name, m in rows:
+        excluded[name] += m.excluded
+    notes = [f"{name}: {n}" for name, n in excluded.items() if n]
+    if notes:
+        out.write(
+            "\nSamples left out (estimate or reference not finite, e.g. a filter below its "
+            f"speed or a non-finite sample in the bag): {'; '.join(notes)}.\n"
         )
     return out.getvalue()
 
 
-def _mean_r2(ms: Sequence[Metrics]) -> str:
-    """R² is undefined on a run whose β is constant (straight driving): left out."""
-    r2 = [m.r2 for m in ms if math.isfinite(m.r2)]
-    return f"{np.mean(r2):.3f}" if r2 else "n/a"
+def _mean(ms: Sequence[Metrics], field: str, spec: str) -> str:
+    """Mean of a metric over runs, leaving out runs where it is undefined (R² of a run
+    whose β is constant, any metric of a run with no finite sample)."""
+    values = [getattr(m, field) for m in ms if math.isfinite(getattr(m, field))]
+    return format(float(np.mean(values)), spec) if values else "n/a"
 
 
 def table_csv(traces: Sequence[Trace]) -> str:
     out = io.StringIO()
     writer = csv.writer(out)
-    writer.writerow(["scenario", "model", "mae_deg", "me_deg", "rmse_deg", "r2", "samples"])
+    writer.writerow(
+        ["scenario", "model", "mae_deg", "me_deg", "rmse_deg", "r2", "samples", "excluded"]
+    )
     for scen, name, m in _rows(traces):
         writer.writerow(
-            [scen, name, f"{m.mae:.6f}", f"{m.me:.6f}", f"{m.rmse:.6f}", f"{m.r2:.6f}", m.n]
+            [scen, name] + [_num(x, ".6f") for x in (m.mae, m.me, m.rmse, m.r2)] + [m.n, m.excluded]
         )
     return out.getvalue()
 
@@ -264,6 +310,9 @@ def plot_error_pdfs(traces: Sequence[Trace], out_dir: Path, prefix: str = "") ->
         fig, ax = plt.subplots(figsize=(7, 3.6))
         for i, t in enumerate(mine):
             err = np.degrees(t.estimate_rad - t.reference_rad)
+            err = err[np.isfinite(err)]
+            if err.size == 0:
+                continue
             mu, sd = float(err.mean()), float(err.std())
             xs = np.linspace(mu - 4 * sd, mu + 4 * sd, 200) if sd > 0 else np.array([mu])
             pdf = (
