@@ -5,7 +5,10 @@ with alignment, the window and publishing); the target is p99 < 0.5 ms for hidde
 units <= 128. Each configuration gets an artifact of random weights (the cost does not
 depend on their values), the paper's six features and a 100-step window, then
 ``--warmup`` untimed and ``--calls`` timed calls on a window that slides by one row per
-call, as in the node.
+call, as in the node, once per engine (``numpy``: the streaming engine, the default;
+``torch``: the whole window through torch per call) in the same run, with their ratio.
+Models that read the car or the UKF get ``paper_sedan``'s files (the UKF then runs
+inside ``update()`` and is timed with it).
 
     python bench/inference.py --json /tmp/inference.json
 """
@@ -80,11 +83,27 @@ def car_values(path: Path, folder: Path) -> dict[str, str]:
     return values
 
 
+def bench_engines(
+    path: Path, calls: int, warmup: int, threads: int, extra: dict[str, str] | None = None
+) -> dict[str, object]:
+    """Both engines' timings on the same rows, in one run, and their ratio at p50/p99."""
+    out: dict[str, object] = {
+        e: bench_update(path, calls, warmup, threads, {**(extra or {}), "engine": e})
+        for e in ("numpy", "torch")
+    }
+    for q in ("p50_us", "p99_us"):
+        out[f"torch_over_numpy_{q.removesuffix('_us')}"] = (
+            out["torch"][q] / out["numpy"][q]  # type: ignore[index]
+        )
+    return out
+
+
 def bench_update(
     path: Path, calls: int, warmup: int, threads: int, extra: dict[str, str] | None = None
 ) -> dict[str, float]:
-    """Timings [us] of ``update()`` alone (the window push is outside the clock); a model
-    anchored on the UKF runs the filter inside ``update()``, so it is timed too."""
+    """Timings [us] of ``update()`` alone (the window push is outside the clock), called
+    on every row as the estimator does; a model anchored on the UKF runs the filter
+    inside ``update()``, so it is timed too."""
     backend = PsoLstmBackend(
         {"model_file": str(path), "threads": threads, **(extra or {})}, WINDOW_STEPS
     )
@@ -98,8 +117,6 @@ def bench_update(
     clock = time.perf_counter_ns
     for i, row in enumerate(rows):
         window.push(row, i * STEP_NS)
-        if not window.full:
-            continue
         r, s = window.rows(), window.stamps_ns()
         started = clock()
         estimate = backend.update(r, s)
@@ -157,13 +174,13 @@ def main(argv: list[str] | None = None) -> int:
             file = Path(tmp) / f"{architecture}{hidden}.safetensors"
             path = random_artifact(file, architecture, hidden)
             key = f"{architecture}_h{hidden}"
-            results[key] = bench_update(path, args.calls, args.warmup, args.threads)
+            results[key] = bench_engines(path, args.calls, args.warmup, args.threads)
             print(f"{key}: {results[key]}", file=sys.stderr)
         for model in args.model:
             if model.exists():
                 key = f"shipped:{model.name}"
                 extra = car_values(model, Path(tmp))
-                results[key] = bench_update(model, args.calls, args.warmup, args.threads, extra)
+                results[key] = bench_engines(model, args.calls, args.warmup, args.threads, extra)
                 print(f"{key}: {results[key]}", file=sys.stderr)
     report = {
         "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),

@@ -4,14 +4,17 @@ torch path (``PsoLstmBackend.update``), one CPU thread, measured in the same run
 For each model: random rows (the paper's channels, scaled like bench/inference.py), the
 model's inputs z-scored once for the whole stream, then ``--warmup`` untimed and
 ``--calls`` timed samples. Each sample times, interleaved so that load on the machine
-hits all three alike:
+hits all paths alike:
 
 * ``push``: ``StreamingLstm.push`` of the newest z-scored row (numpy, no torch,
   float64: exact up to float64 rounding);
 * ``push_float32``: the same engine in float32 arithmetic (rounds like torch, not bit
   for bit);
-* ``update``: ``PsoLstmBackend.update`` on the window, as bench/inference.py times it
-  (the model's inputs of the whole window, the prior, ``torch.lstm`` and the head);
+* ``update``: ``PsoLstmBackend.update`` with ``engine=torch`` on the window, as
+  bench/inference.py times it (the model's inputs of the whole window, the prior,
+  ``torch.lstm`` and the head);
+* ``update_numpy``: ``PsoLstmBackend.update`` with ``engine=numpy`` (the default): the
+  newest row's inputs, one ``push``, the prior;
 * ``torch_lstm``: the ``torch.lstm`` call plus head of that back-end alone, on the
   same float32 window (the network part that ``push`` replaces).
 
@@ -78,10 +81,12 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         msg = f"{path}: reads the UKF observer or the car; this bench times kinematic models only"
         raise SystemExit(msg)
     w = meta.window_steps
-    backend = PsoLstmBackend({"model_file": str(path), "threads": 1}, w)
+    backend = PsoLstmBackend({"model_file": str(path), "threads": 1, "engine": "torch"}, w)
+    streaming = PsoLstmBackend({"model_file": str(path), "threads": 1, "engine": "numpy"}, w)
     engine = StreamingLstm(tensors, meta)
     engine32 = StreamingLstm(tensors, meta, dtype=np.float32)
-    torch = backend._torch  # the back-end's own torch, set to one thread
+    net = backend._window_net  # the torch back-end's network, set to one thread
+    torch = net._torch
 
     rng = np.random.default_rng(1)
     scale = np.array([5.0, 0.5, 0.5, 4.0, 0.2, 0.02])
@@ -93,10 +98,10 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
 
     window = SampleWindow(w, len(CHANNELS))
     x32 = torch.zeros(1, w, len(meta.features), dtype=torch.float32)
-    weights, state = backend._weights, backend._state
-    head = backend._head
+    weights, state = net._weights, net._state
+    head = net._head
     bi = meta.directions == 2
-    times = np.zeros((4, calls), dtype=np.int64)
+    times = np.zeros((5, calls), dtype=np.int64)
     max_dy = max_dy32 = 0.0
     clock = time.perf_counter_ns
     for i, row in enumerate(rows):
@@ -106,9 +111,12 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         t1 = clock()
         y32 = engine32.push(inputs[i])
         t6 = clock()
+        r, s = window.rows(), window.stamps_ns()
+        t7 = clock()
+        streamed = streaming.update(r, s)  # called on every row, as the estimator does
+        t8 = clock()
         if not window.full:
             continue
-        r, s = window.rows(), window.stamps_ns()
         t2 = clock()
         estimate = backend.update(r, s)
         t3 = clock()
@@ -121,15 +129,17 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         k = i - (w - 1) - warmup
         if k < 0:
             continue
-        times[:, k] = (t1 - t0, t6 - t1, t3 - t2, t5 - t4)
+        times[:, k] = (t1 - t0, t6 - t1, t3 - t2, t5 - t4, t8 - t7)
         prior = 0.0
         if meta.prior != "none":
             prior = prior_of_window(columns_of_rows(r, meta.channels), meta.prior, meta.dt_s)
         assert y is not None and y32 is not None and estimate is not None
         y_update = (estimate.beta_rad - prior - meta.beta_mean) / meta.beta_std
-        max_dy = max(max_dy, abs(y - y_torch), abs(y - y_update))
+        assert streamed is not None
+        y_streamed = (streamed.beta_rad - prior - meta.beta_mean) / meta.beta_std
+        max_dy = max(max_dy, abs(y - y_torch), abs(y - y_update), abs(y_streamed - y_update))
         max_dy32 = max(max_dy32, abs(y32 - y_torch), abs(y32 - y_update))
-    push, push32, update, core = (_stats(t) for t in times)
+    push, push32, update, core, update_numpy = (_stats(t) for t in times)
     return {
         "architecture": f"{meta.architecture} {meta.layers}x{meta.hidden_units}",
         "features": len(meta.features),
@@ -138,7 +148,10 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         "push": push,
         "push_float32": push32,
         "update": update,
+        "update_numpy": update_numpy,
         "torch_lstm": core,
+        "update_over_update_numpy_p50": update["p50_us"] / update_numpy["p50_us"],
+        "update_over_update_numpy_p99": update["p99_us"] / update_numpy["p99_us"],
         "update_over_push_p50": update["p50_us"] / push["p50_us"],
         "update_over_push_p99": update["p99_us"] / push["p99_us"],
         "torch_lstm_over_push_p50": core["p50_us"] / push["p50_us"],

@@ -20,8 +20,13 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
     install_requires=["numpy", "PyYAML", "sideslip_msgs_py"],
-    # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (torch), `[ukf]` (filterpy).
-    extras_require={"pso_lstm": ["torch", "safetensors"], "ukf": ["filterpy", "scipy"]},
+    # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (the model file reader;
+    # the default streaming engine is numpy), `[torch]` for pso_lstm's torch engine, `[ukf]`.
+    extras_require={
+        "pso_lstm": ["safetensors"],
+        "torch": ["torch", "safetensors"],
+        "ukf": ["filterpy", "scipy"],
+    },
     zip_safe=False,
     maintainer="sideslip maintainers",
     maintainer_email="maintainers@sideslip.invalid",

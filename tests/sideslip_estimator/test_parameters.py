@@ -61,6 +61,7 @@ STR_NAMES = {
     "model_file",
     "vehicle_file",
     "observer_params_file",
+    "engine",
 }
 
 

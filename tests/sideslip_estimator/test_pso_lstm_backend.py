@@ -1,5 +1,6 @@
-"""The pso_lstm back-end: the same β̂ as the trainer's network, bit for bit, from the artifact
-alone; refusals at start-up; the registry does not import torch."""
+"""The pso_lstm back-end: the same β̂ as the trainer's network (bit for bit with the torch
+engine, within 1e-6 rad with the streaming engine), from the artifact alone; refusals at
+start-up; the registry does not import torch."""
 
 from __future__ import annotations
 
@@ -108,21 +109,44 @@ def _stats(meta: ModelMetadata) -> tuple[np.ndarray, np.ndarray]:
 # --- same output as the network it was exported from ------------------------------------------
 
 
-@pytest.mark.parametrize(
-    ("architecture", "feature_set", "layers"),
-    [("lstm", "paper", 1), ("lstm", "measurable", 2), ("bilstm", "measurable", 1)],
-)
-def test_estimate_equals_the_trained_network_bit_for_bit(
+MODELS = [("lstm", "paper", 1), ("lstm", "measurable", 2), ("bilstm", "measurable", 1)]
+
+
+@pytest.mark.parametrize(("architecture", "feature_set", "layers"), MODELS)
+def test_the_torch_engine_equals_the_trained_network_bit_for_bit(
     tmp_path: Path, architecture: str, feature_set: str, layers: int
 ) -> None:
     path = write_model(tmp_path / "m.safetensors", architecture, feature_set, layers=layers)
-    backend = create_backend("pso_lstm", {"model_file": str(path)}, WINDOW)
+    backend = create_backend("pso_lstm", {"model_file": str(path), "engine": "torch"}, WINDOW)
     rows, stamps = make_rows(WINDOW + 40, seed=1)
     for end in (WINDOW, WINDOW + 17, WINDOW + 40):  # successive windows reuse the buffers
         est = backend.update(rows[end - WINDOW : end], stamps[end - WINDOW : end])
         assert est is not None
         assert est.beta_rad == reference_beta(path, rows[:end])
         assert math.isfinite(est.beta_rad) and est.beta_rad != 0.0
+
+
+@pytest.mark.parametrize(("architecture", "feature_set", "layers"), MODELS)
+def test_the_streaming_engine_equals_the_trained_network_within_1e_6_rad(
+    tmp_path: Path, architecture: str, feature_set: str, layers: int
+) -> None:
+    path = write_model(tmp_path / "m.safetensors", architecture, feature_set, layers=layers)
+    backend = create_backend("pso_lstm", {"model_file": str(path)}, WINDOW)
+    assert backend.engine == "numpy"
+    rows, stamps = make_rows(WINDOW + 60, seed=1)
+    # As the estimator calls it: one new row per call, the window growing to full.
+    for end in range(1, WINDOW + 40):
+        est = backend.update(rows[max(0, end - WINDOW) : end], stamps[max(0, end - WINDOW) : end])
+        assert (est is None) == (end < WINDOW)
+        if end in (WINDOW, WINDOW + 17, WINDOW + 39):
+            assert abs(est.beta_rad - reference_beta(path, rows[:end])) <= 1e-6
+    # A caller that skips rows: the engine refills from the window, still the window's β̂.
+    end = WINDOW + 60
+    est = backend.update(rows[end - WINDOW : end], stamps[end - WINDOW : end])
+    assert abs(est.beta_rad - reference_beta(path, rows[:end])) <= 1e-6
+    # After reset nothing until the window is full again.
+    backend.reset()
+    assert backend.update(rows[:1], stamps[:1]) is None
 
 
 def test_no_estimate_until_the_window_is_full(tmp_path: Path) -> None:
@@ -221,6 +245,20 @@ def test_invalid_parameters_are_refused(values: dict, match: str) -> None:
 
 
 # --- import weight --------------------------------------------------------------------------------
+
+
+def test_the_streaming_engine_runs_the_shipped_default_without_torch() -> None:
+    code = (
+        "import sys\n"
+        "from sideslip_estimator.backends import create_backend\n"
+        "b = create_backend('pso_lstm', {}, 100)\n"
+        "assert b.engine == 'numpy'\n"
+        "print('torch' in sys.modules)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert out.stdout.strip() == "False"
 
 
 def test_importing_the_backends_does_not_import_torch() -> None:

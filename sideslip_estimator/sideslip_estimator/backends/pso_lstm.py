@@ -2,15 +2,26 @@
 
 The artifact (:mod:`sideslip_msgs_py.artifact`, written by ``sideslip-train``) holds
 float32 weights and the metadata: architecture, feature names and order, z-score
-statistics, window length and sample period. Nothing in it is executed: the network
-(``torch.nn.LSTM`` + ``torch.nn.Linear``) is rebuilt from the metadata and the weights
-are loaded by name. Start-up refuses (:class:`BackendError`) a file that is missing or
-malformed, a window length other than the model's, or a feature the window lacks.
+statistics, window length and sample period. Nothing in it is executed: the network is
+rebuilt from the metadata and the weights are read by name. Start-up refuses
+(:class:`BackendError`) a file that is missing or malformed, a window length other than
+the model's, or a feature the window lacks.
 
-Per sample: the model's feature columns of the last ``window_steps`` rows, z-scored in
-float64 and rounded to float32, go through the LSTM; the head reads its output at the
-last step (the paper's Fig. 5) and β̂ [rad] = y · beta_std + beta_mean. The result is
-bit for bit what ``sideslip_training``'s ``SideslipNet`` gives on the same window.
+Per sample: the model's inputs, z-scored in float64 and rounded to float32, go through
+the LSTM; the head reads its output at the window's last step (the paper's Fig. 5) and
+β̂ [rad] = y · beta_std + beta_mean (+ the prior). Two engines compute the same thing:
+
+* ``numpy`` (default): :class:`~sideslip_estimator.streaming.StreamingLstm`. Every
+  window in flight reads the same new sample, so each call pushes the newest row once
+  and all windows advance with one batched LSTM step; the oldest one is complete and is
+  the estimate. Equal to the trainer's network within 1e-6 rad (float64 arithmetic
+  against torch's float32; tested on random and shipped models), and needs no torch.
+  Each call must bring exactly one new row (the estimator's contract); rows that do not
+  continue the previous call refill the engine from the window.
+* ``torch``: the whole window through ``torch.lstm`` per call, bit for bit what
+  ``sideslip_training``'s ``SideslipNet`` gives. A BiLSTM with two or more layers
+  always takes it (its upper layers read the reverse direction, which depends on where
+  the window ends, so nothing can be shared between windows).
 
 Sample period: the model assumes rows ``dt_s`` apart (``metadata.dt_s``, the paper's
 2.5 ms). The back-end cannot see the input rate at start-up, so it does not check it:
@@ -37,8 +48,8 @@ Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
 :data:`DEFAULT_SIGMA_RAD` (1°) squared. A constant, not a per-sample uncertainty.
 
-torch is imported when the back-end is built, never when this module is imported, so
-the registry (and the kinematic and single-track back-ends) work without it.
+torch is imported only when the ``torch`` engine is built, never by this module's import,
+so the registry, the other back-ends and the default engine work without it.
 """
 
 from __future__ import annotations
@@ -69,8 +80,10 @@ from sideslip_msgs_py.model_inputs import (
 from sideslip_msgs_py.parameters import ParameterSpec
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
+from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
 
+ENGINES: Final = ("numpy", "torch")
 SHIPPED_DIR: Final = "data/models"
 SHIPPED_MODEL: Final = f"{SHIPPED_DIR}/fleet_lstm_paper.safetensors"
 """The default model, relative to the sideslip_estimator package: needs nothing but the
@@ -174,10 +187,19 @@ class PsoLstmBackend:
             "(ukf.* inputs or the ukf prior); unused otherwise.",
         ),
         ParameterSpec(
+            "engine",
+            "numpy",
+            "numpy: the streaming engine (all in-flight windows advance by one batched LSTM "
+            "step per sample; no torch needed); torch: the whole window per sample through "
+            "torch (the per-window path, bit for bit the trainer's network). A stacked "
+            "BiLSTM always takes torch.",
+        ),
+        ParameterSpec(
             "threads",
             1,
-            "CPU threads for the network (torch.set_num_threads: process-wide). One is "
-            "fastest for a single 100-step window.",
+            "CPU threads of the torch engine (torch.set_num_threads: process-wide). One is "
+            "fastest for a single 100-step window. The numpy engine uses numpy's BLAS "
+            "(OPENBLAS_NUM_THREADS).",
         ),
     )
 
@@ -200,9 +222,6 @@ class PsoLstmBackend:
         self._observer = _observer_for(meta, observer_file, label, window_steps)
         self._observed: deque[tuple[float, ...]] = deque(maxlen=window_steps)
 
-        torch = _import_torch()
-        torch.set_num_threads(threads)
-        self._torch = torch
         self.meta = meta
         self.dt_s = meta.dt_s
         """Sample period the model was trained at [s]."""
@@ -211,14 +230,113 @@ class PsoLstmBackend:
         rmse_deg = meta.metrics.get(VALIDATION_RMSE_KEY)
         sigma = math.radians(rmse_deg) if rmse_deg is not None else DEFAULT_SIGMA_RAD
         self.variance_rad2 = sigma * sigma
+        self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
+        self._std = np.asarray(meta.feature_std, dtype=np.float64)
+
+        engine = str(v["engine"])
+        if engine not in ENGINES:
+            raise BackendError(f"pso_lstm.engine must be one of {ENGINES}, got {engine!r}")
+        self._stream = StreamingLstm(tensors, meta)
+        if engine == "numpy" and self._stream.per_window_recurrences > 0:
+            engine = "torch"  # a stacked BiLSTM recomputes its windows: torch is faster
+        self.engine = engine
+        """``numpy`` (the streaming engine) or ``torch`` (the whole window per sample)."""
+        self._window_net = _TorchWindow(tensors, meta, threads) if engine == "torch" else None
+        self._rows_pushed = 0
+        self._last_stamp = 0
         self.model_id = (
             f"pso_lstm({label}: {meta.architecture} {meta.layers}x{meta.hidden_units}, "
-            f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}"
+            f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}, "
+            f"engine {engine}"
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + ")"
         )
 
-        # The network, rebuilt from the metadata; the weights are loaded by name.
+    def reset(self) -> None:
+        """Restart the streaming engine's windows and the observer (if any)."""
+        self._stream.reset()
+        self._rows_pushed = 0
+        if self._observer is not None:
+            self._observer.reset()
+            self._observed.clear()
+
+    def update(
+        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+    ) -> Estimate | None:
+        if self._observer is not None:
+            # The filter sees every sample, also while the window fills.
+            seen = self._observer.update(rows, stamps_ns)
+            self._observed.append(self._observer.observer_row(seen))
+        if self._window_net is None:
+            y = self._push(rows, stamps_ns)
+            if y is None or rows.shape[0] < self.window_steps:
+                return None
+        elif rows.shape[0] < self.window_steps:
+            return None
+        window = rows[-self.window_steps :]
+        columns = columns_of_rows(window, self._channels)
+        if self._observer is not None:
+            if len(self._observed) < self.window_steps:
+                return None
+            observed = np.array(self._observed)
+            if not np.isfinite(observed).all():
+                return None
+            for j, name in enumerate(OBSERVER_COLUMNS):
+                columns[name] = observed[:, j]
+        prior = 0.0
+        if self.meta.prior != "none":
+            prior = prior_of_window(columns, self.meta.prior, self.dt_s)
+            if not math.isfinite(prior):
+                return None
+        if self._window_net is not None:
+            x = input_matrix(columns, self.meta.features, self._vehicle)
+            y = self._window_net((x - self._mean) / self._std)
+        if not math.isfinite(y):
+            return None
+        return Estimate(denormalize_beta(y, self.meta) + prior, self.variance_rad2)
+
+    def _push(
+        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+    ) -> float | None:
+        """The streaming engine's output after the newest row. Each call must bring one
+        new row (the estimator's contract); if the rows do not continue what was pushed
+        (a caller that skipped a call or restarted without :meth:`reset`), the engine is
+        refilled from the window's rows, so the result is still the window's."""
+        n = rows.shape[0]
+        continues = n == min(self._rows_pushed + 1, self.window_steps) and (
+            n == 1 or int(stamps_ns[-2]) == self._last_stamp
+        )
+        if not continues:
+            self._stream.reset()
+            self._rows_pushed = 0
+            for k in range(n - 1):
+                self._push_row(rows, k)
+        self._last_stamp = int(stamps_ns[-1])
+        return self._push_row(rows, n - 1)
+
+    def _push_row(self, rows: npt.NDArray[np.float64], k: int) -> float | None:
+        """Push row k of ``rows`` (z-scored model inputs) into the streaming engine."""
+        columns = columns_of_rows(rows[k : k + 1], self._channels)
+        if self._observer is not None:
+            # The observer's value for row k: its history is aligned with the rows' end.
+            back = rows.shape[0] - k
+            got = self._observed[-back] if back <= len(self._observed) else None
+            for j, name in enumerate(OBSERVER_COLUMNS):
+                columns[name] = np.array([got[j] if got is not None else math.nan])
+        x = input_matrix(columns, self.meta.features, self._vehicle)[0]
+        self._rows_pushed = min(self._rows_pushed + 1, self.window_steps)
+        return self._stream.push((x - self._mean) / self._std)
+
+
+class _TorchWindow:
+    """The network on one whole window with torch (the per-window path): what
+    ``sideslip_training``'s ``SideslipNet`` computes, bit for bit."""
+
+    def __init__(self, tensors: Mapping[str, np.ndarray], meta: ModelMetadata, threads: int):
+        torch = _import_torch()
+        torch.set_num_threads(threads)
+        self._torch = torch
+        self.meta = meta
         n_features, hidden = len(meta.features), meta.hidden_units
         lstm = torch.nn.LSTM(
             n_features,
@@ -232,55 +350,19 @@ class PsoLstmBackend:
         head.load_state_dict(_prefixed(torch, tensors, "head."), strict=True)
         lstm.eval().requires_grad_(False)
         head.eval().requires_grad_(False)
-        self._lstm, self._head = lstm, head
+        self._head = head
         # torch.lstm is what nn.LSTM.forward calls; calling it with the weights and a
         # zero state prepared once saves ~50 us of Python per sample at 400 Hz.
         self._weights = [w for layer in lstm.all_weights for w in layer]
         zeros = torch.zeros(meta.layers * meta.directions, 1, hidden)
         self._state = (zeros, zeros.clone())
-
-        # Preallocated per-sample buffers: the window's model columns (float64) and the
-        # network input (float32, shared memory with the tensor fed to torch).
-        self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
-        self._std = np.asarray(meta.feature_std, dtype=np.float64)
-        self._scratch = np.empty((window_steps, n_features), dtype=np.float64)
-        self._input = torch.zeros(1, window_steps, n_features, dtype=torch.float32)
+        # The network input (float32, shared memory with the tensor fed to torch).
+        self._input = torch.zeros(1, meta.window_steps, n_features, dtype=torch.float32)
         self._input_np = self._input.numpy()
 
-    def reset(self) -> None:
-        """The network reads every window afresh; only the observer (if any) has state."""
-        if self._observer is not None:
-            self._observer.reset()
-            self._observed.clear()
-
-    def update(
-        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
-    ) -> Estimate | None:
-        if self._observer is not None:
-            # The filter sees every sample, also while the window fills.
-            seen = self._observer.update(rows, stamps_ns)
-            self._observed.append(self._observer.observer_row(seen))
-        if rows.shape[0] < self.window_steps:
-            return None
-        window = rows[-self.window_steps :]
-        columns = columns_of_rows(window, self._channels)
-        if self._observer is not None:
-            if len(self._observed) < self.window_steps:
-                return None
-            observed = np.array(self._observed)
-            if not np.isfinite(observed).all():
-                return None
-            for j, name in enumerate(OBSERVER_COLUMNS):
-                columns[name] = observed[:, j]
-        x = self._scratch
-        x[:] = input_matrix(columns, self.meta.features, self._vehicle)
-        prior = 0.0
-        if self.meta.prior != "none":
-            prior = prior_of_window(columns, self.meta.prior, self.dt_s)
-            if not math.isfinite(prior):
-                return None
-        np.subtract(x, self._mean, out=x)
-        np.divide(x, self._std, out=self._input_np[0], casting="same_kind")
+    def __call__(self, z: npt.NDArray[np.float64]) -> float:
+        """y of one window of z-scored inputs (window_steps, F), rounded to float32."""
+        self._input_np[0] = z
         torch = self._torch
         with torch.inference_mode():
             output, _, _ = torch.lstm(
@@ -295,7 +377,7 @@ class PsoLstmBackend:
                 True,  # batch_first
             )
             y = torch.nn.functional.linear(output[:, -1, :], self._head.weight, self._head.bias)
-        return Estimate(denormalize_beta(y.item(), self.meta) + prior, self.variance_rad2)
+        return float(y.item())
 
 
 def _vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDescription | None:
