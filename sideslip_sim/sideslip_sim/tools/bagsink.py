@@ -6,10 +6,16 @@ The bag is what ``ros2 bag record -s mcap`` writes, set up by
 compression): serialisation ``cdr``, Jazzy message definitions and type hashes, each
 topic's offered QoS profiles. Messages are stored byte for byte as received.
 
-rosbags' MCAP writer collects messages in an in-memory chunk of up to 1 MiB;
-:meth:`BagSink.flush` writes the pending chunk to disk so that, should the recorder be
-killed without a chance to close the bag, the .mcap file still holds everything up to
-the last flush (readable with :func:`sideslip_msgs_py.bag.read_bag` on the file).
+Crash safety: rosbags' MCAP writer collects messages in an in-memory chunk of up to
+1 MiB and writes the summary (and metadata.yaml) only when the bag is closed.
+:meth:`BagSink.flush` (the recorder calls it every flush period) writes the pending
+chunk to the file and rewrites a provisional metadata.yaml (:mod:`.bagmeta`) that
+lists the topics and the messages flushed so far. Should the recorder be killed
+without a chance to close the bag, the directory holds everything up to the last
+flush: our readers open it as a truncated bag, and ``sideslip-record --reindex``
+(:mod:`.reindex`) turns it into a finished bag that rosbags and ``ros2 bag`` read.
+Each flush ends a chunk, so a shorter flush period costs some compression (measured
+with 400-Hz contract topics: +5 % file size at 1 s, +10 % at 0.5 s, +15 % at 0.1 s).
 """
 
 from __future__ import annotations
@@ -21,6 +27,14 @@ from typing import Any
 from sideslip_msgs_py.bag import open_writer
 from sideslip_msgs_py.errors import BagError
 
+from .bagmeta import (
+    IN_PROGRESS_KEY,
+    FileEntry,
+    TopicEntry,
+    in_progress_marker,
+    metadata_document,
+    write_metadata,
+)
 from .errors import UnknownTypeError
 from .offers import OfferedQos
 
@@ -44,8 +58,8 @@ def check_recordable(msgtype: str, typestore: Any) -> None:
 class BagSink:
     """An open output bag. Not thread-safe: use it from one thread.
 
-    Create it with :func:`open_sink`; :meth:`close` writes the summary and
-    metadata.yaml (it is idempotent).
+    Create it with :func:`open_sink`; call :meth:`flush` periodically; :meth:`close`
+    writes the summary and the final metadata.yaml (it is idempotent).
     """
 
     def __init__(self, writer: Any, typestore: Any) -> None:
@@ -54,6 +68,8 @@ class BagSink:
         self._connections: dict[str, Any] = {}
         self._counts: dict[str, int] = {}
         self._closed = False
+        self._marker = in_progress_marker()
+        self._synced: tuple[int, int] | None = None  # (topics, messages) in metadata.yaml
 
     @property
     def path(self) -> Path:
@@ -83,7 +99,13 @@ class BagSink:
         self._counts[topic] += 1
 
     def flush(self) -> None:
-        """Write the pending chunk (if it holds messages) to the file and flush it."""
+        """Put every message written so far into the file, then update metadata.yaml.
+
+        The pending chunk (if it holds messages) is written and the file buffer flushed
+        to the operating system, so the messages survive the process (not a power cut:
+        there is no fsync). The provisional metadata.yaml is rewritten when topics or
+        messages were added since the last flush.
+        """
         if self._closed:
             return
         storage = self._writer.storage
@@ -91,7 +113,34 @@ class BagSink:
         # rosbags internals (McapWriter, pinned in constraints.txt): skip when they differ.
         if chunk is not None and getattr(chunk, "msgs", None) and hasattr(storage, "close_chunk"):
             storage.close_chunk()
-            storage.bio.flush()
+        bio = getattr(storage, "bio", None)
+        if bio is not None:
+            bio.flush()  # also a chunk that reached 1 MiB and was written by write()
+        state = (len(self._connections), sum(self._counts.values()))
+        if state != self._synced:
+            write_metadata(self.path, self._provisional_metadata())
+            self._synced = state
+
+    def _provisional_metadata(self) -> dict[str, Any]:
+        """metadata.yaml for what :meth:`flush` has put in the file, marked in progress."""
+        writer = self._writer
+        topics = [
+            TopicEntry(
+                conn.topic,
+                conn.msgtype,
+                conn.digest,
+                tuple(conn.ext.offered_qos_profiles),
+                writer.counts[conn.id],
+                conn.ext.serialization_format,
+            )
+            for conn in writer.connections
+        ]
+        count = sum(writer.counts.values())
+        mcap = FileEntry(Path(writer.storage.path).name, count)
+        if count:
+            mcap = FileEntry(mcap.path, count, writer.min_timestamp, writer.max_timestamp)
+        custom = {**writer.custom_data, IN_PROGRESS_KEY: self._marker}
+        return metadata_document(topics, [mcap], custom)
 
     def close(self) -> None:
         """Finish the bag: last chunk, MCAP summary, metadata.yaml. Idempotent."""
@@ -102,7 +151,8 @@ class BagSink:
 
 
 def open_sink(path: str | Path, *, compress: bool = True, force: bool = False) -> BagSink:
-    """Create the output bag directory ``path`` (its .mcap is named after it).
+    """Create the output bag directory ``path`` (its .mcap is named after it) with a
+    provisional metadata.yaml.
 
     Args:
         path: output directory; must not exist unless ``force``.
@@ -115,4 +165,11 @@ def open_sink(path: str | Path, *, compress: bool = True, force: bool = False) -
         BagExistsError: ``path`` exists and ``force`` is false, or it is not a bag.
         BagError: the directory cannot be created.
     """
-    return BagSink(open_writer(path, force=force, compress=compress), jazzy_typestore())
+    sink = BagSink(open_writer(path, force=force, compress=compress), jazzy_typestore())
+    try:
+        sink.flush()  # the provisional metadata.yaml: a bag directory from the start
+    except OSError as err:
+        sink.close()
+        msg = f"{path}: cannot write metadata.yaml: {err}"
+        raise BagError(msg) from None
+    return sink

@@ -8,6 +8,12 @@ the time the recorder takes it from DDS (system clock, ns; ``ros2 bag record`` d
 same). Messages are written as they arrive and the bag is finished on SIGINT/SIGTERM
 or after ``--max-duration``; at the stop, messages DDS has already received are taken
 and stored first.
+
+Crash safety: every ``--flush-period`` the messages received so far go into the .mcap
+file and a provisional metadata.yaml is rewritten (:mod:`.bagsink`). A recorder killed
+without warning loses at most the messages of its last flush period (plus any DDS had
+not yet handed over); ``sideslip-record --reindex DIR`` (:mod:`.reindex`, no rclpy)
+then finishes the bag for rosbags and ``ros2 bag``.
 """
 
 from __future__ import annotations
@@ -38,8 +44,9 @@ from .cli import (
     message_class,
     split_ros_args,
 )
-from .errors import ToolError
+from .errors import OptionError, ToolError
 from .offers import OfferedQos, all_reliable, describe, subscription_qos
+from .reindex import reindex
 
 PROG: Final = "sideslip-record"
 NODE_NAME: Final = "sideslip_record"
@@ -47,8 +54,13 @@ NODE_NAME: Final = "sideslip_record"
 DISCOVERY_PERIOD_S: Final = 0.1
 """How often the graph is checked for new publishers [s]."""
 
-FLUSH_PERIOD_S: Final = 1.0
-"""How often buffered messages are written to the .mcap file [s]."""
+DEFAULT_FLUSH_PERIOD_S: Final = 1.0
+"""How often received messages are written to the .mcap file [s]: what a killed recorder
+loses at most (measured: up to 1.00 s, about 2000 messages of the five 400-Hz sample
+topics). Each flush ends an MCAP chunk, which zstd compresses less well: at 1 s the bag
+is 5 % larger than with full 1-MiB chunks, at 0.5 s 10 %, at 0.1 s 15 %. A second is
+short against a drive of minutes and costs little; pass a shorter ``--flush-period``
+where that second matters."""
 
 DRAIN_BATCH: Final = 256
 """Messages taken from one subscription per callback (fewer executor round trips)."""
@@ -67,6 +79,7 @@ class RecordOptions:
         force: replace an existing bag at ``out``.
         compress: zstd-compress the MCAP chunks.
         max_duration_s: stop after this long [s] (wall clock from start); None: never.
+        flush_period_s: write received messages to the file this often [s].
     """
 
     out: Path
@@ -74,6 +87,7 @@ class RecordOptions:
     force: bool = False
     compress: bool = True
     max_duration_s: float | None = None
+    flush_period_s: float = DEFAULT_FLUSH_PERIOD_S
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -86,17 +100,37 @@ def build_parser() -> argparse.ArgumentParser:
             "every publisher offers reliable, and the offered QoS is stored in the bag. "
             "Messages are stored byte for byte as received, logged at their receive time "
             "(system clock). Stop with Ctrl-C (SIGINT) or SIGTERM: the bag is closed "
-            "cleanly and the number of messages per topic is logged."
+            "cleanly and the number of messages per topic is logged. Every --flush-period "
+            "the received messages are written to the .mcap file and a provisional "
+            "metadata.yaml is updated, so a recorder killed without warning (SIGKILL, a "
+            "crash) loses at most its last flush period; `sideslip-record --reindex DIR` "
+            "then finishes such a bag (summary, final metadata.yaml) for rosbags and "
+            "`ros2 bag`. Our own readers (sideslip-play, training) read it even before."
         ),
         epilog=(
             "ROS arguments go after --ros-args, e.g. `--ros-args -r __node:=rec1` or "
             "`-r /vehicle/imu:=/car/imu` (the bag then holds the remapped name). "
-            "Exit status: 0 after a clean stop, 2 for refused input (existing --out "
-            "without --force, a topic outside the contract). "
+            "Exit status: 0 after a clean stop or a reindex, 2 for refused input "
+            "(existing --out without --force, a topic outside the contract, a --reindex "
+            "DIR that is not an MCAP bag directory or already has final metadata). "
             "Example: sideslip-record --out runs/drive1 --topics /vehicle/imu /sideslip"
         ),
     )
-    parser.add_argument("--out", required=True, type=Path, help="output bag directory")
+    target = parser.add_mutually_exclusive_group(required=True)
+    target.add_argument("--out", type=Path, help="output bag directory")
+    target.add_argument(
+        "--reindex",
+        type=Path,
+        metavar="DIR",
+        help=(
+            "do not record: finish the bag directory DIR whose recorder was killed. Its "
+            ".mcap files are read up to their first damaged record; a file that rosbags "
+            "cannot read is rewritten with the readable messages (the original is kept as "
+            "*.mcap.damaged), and metadata.yaml is written with every topic, its type, "
+            "offered QoS and message count. Refused when DIR already has the metadata of "
+            "a finished bag or its recorder still runs, unless --force"
+        ),
+    )
     parser.add_argument(
         "--topics",
         nargs="+",
@@ -104,7 +138,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="contract topics to record (default: every contract topic)",
     )
     parser.add_argument(
-        "--force", action="store_true", help="replace an existing bag at --out (bags only)"
+        "--force",
+        action="store_true",
+        help=(
+            "replace an existing bag at --out (bags only); with --reindex, rewrite an "
+            "existing final metadata.yaml"
+        ),
     )
     parser.add_argument("--no-compress", action="store_true", help="write uncompressed MCAP chunks")
     parser.add_argument(
@@ -113,14 +152,37 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="stop by itself after S seconds of wall time (default: until signalled)",
     )
+    parser.add_argument(
+        "--flush-period",
+        type=float,
+        metavar="S",
+        help=(
+            "write received messages to the .mcap file every S seconds (default "
+            f"{DEFAULT_FLUSH_PERIOD_S:g}): a recorder killed without warning loses at most "
+            "the last S seconds. Shorter periods cost file size (each flush ends a "
+            "compressed chunk: +5 %% at 1 s, +10 %% at 0.5 s, +15 %% at 0.1 s)"
+        ),
+    )
     return parser
 
 
+_RECORDING_ONLY: Final = (
+    ("topics", "--topics"),
+    ("max_duration", "--max-duration"),
+    ("flush_period", "--flush-period"),
+    ("no_compress", "--no-compress"),
+)
+
+
 def parse_options(args: argparse.Namespace) -> RecordOptions:
-    """Validated options; raises :class:`~.errors.OptionError` naming the bad one."""
+    """Validated recording options; raises :class:`~.errors.OptionError` naming the bad one."""
     max_duration = args.max_duration
     if max_duration is not None:
         check_positive(max_duration, "--max-duration")
+    flush_period = args.flush_period
+    if flush_period is None:
+        flush_period = DEFAULT_FLUSH_PERIOD_S
+    check_positive(flush_period, "--flush-period")
     chosen = contract_topics(args.topics)
     return RecordOptions(
         out=args.out,
@@ -128,7 +190,16 @@ def parse_options(args: argparse.Namespace) -> RecordOptions:
         force=args.force,
         compress=not args.no_compress,
         max_duration_s=max_duration,
+        flush_period_s=flush_period,
     )
+
+
+def check_reindex_options(args: argparse.Namespace) -> None:
+    """Raise :class:`~.errors.OptionError` for a recording option given with --reindex."""
+    for attr, option in _RECORDING_ONLY:
+        if getattr(args, attr) not in (None, False):
+            msg = f"{option} is a recording option; --reindex DIR takes only --force"
+            raise OptionError(msg)
 
 
 class Recorder(Node):
@@ -146,13 +217,14 @@ class Recorder(Node):
         # Steady clock: with use_sim_time, ROS-time timers would stop with /clock.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
-        self.create_timer(FLUSH_PERIOD_S, sink.flush, clock=steady)
+        self.create_timer(options.flush_period_s, sink.flush, clock=steady)
         if options.max_duration_s is not None:
             self._stop_timer = self.create_timer(
                 options.max_duration_s, self._on_max_duration, clock=steady
             )
         self.get_logger().info(
-            f"recording to {sink.path}: waiting for publishers on {len(self._wanted)} topic(s)"
+            f"recording to {sink.path} (flushed every {options.flush_period_s:g} s): "
+            f"waiting for publishers on {len(self._wanted)} topic(s)"
         )
 
     # --- discovery ------------------------------------------------------------------------
@@ -259,6 +331,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, _ = split_ros_args(argv)
     args = build_parser().parse_args(ours)
+    if args.reindex is not None:
+        return reindex_main(args)
     try:
         options = parse_options(args)
         typestore = jazzy_typestore()
@@ -272,6 +346,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return run(lambda flag: Recorder(options, sink, flag), [PROG, *argv])
     finally:
         sink.close()  # no-op after the node's close(); covers a failure before it
+
+
+def reindex_main(args: argparse.Namespace) -> int:
+    """``sideslip-record --reindex DIR``: finish a killed recording; returns the exit status."""
+    try:
+        check_reindex_options(args)
+        result = reindex(args.reindex, force=args.force)
+    except (ToolError, BagError) as err:
+        return fail(PROG, err)
+    for note in result.notes:
+        print(f"{PROG}: warning: {note}", file=sys.stderr)
+    span_s = (result.end_ns - result.start_ns) * 1e-9
+    print(
+        f"{PROG}: reindexed {result.path}: {result.message_count} messages over "
+        f"{span_s:.3f} s in {', '.join(result.files)} ({format_counts(result.topic_counts)}); "
+        "metadata.yaml written"
+    )
+    return 0
 
 
 if __name__ == "__main__":

@@ -121,10 +121,11 @@ def test_flushed_messages_survive_a_recorder_that_never_closes(tmp_path: Path) -
             sink.add_topic(conn.topic, conn.msgtype, [])
         for conn, t, data in reader.messages():
             sink.write(conn.topic, t, data)
-    sink.flush()  # then "killed": no close, no summary, no metadata.yaml
+    sink.flush()  # then "killed": no close, no summary, only the provisional metadata.yaml
     contents = read_bag(tmp_path / "out" / "out.mcap")
     assert contents.truncated
     assert len(contents.samples) == 200
+    assert read_bag(tmp_path / "out").samples == contents.samples  # the directory too
 
 
 # --- command line refusals -------------------------------------------------------------------
