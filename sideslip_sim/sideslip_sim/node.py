@@ -10,6 +10,7 @@ this module's ``main``.
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -78,6 +79,12 @@ PARAMETERS = (
         "Hold the start until every published topic has this many subscribers (0 = start "
         "now). With only an estimator listening, set ground_truth false or it waits on.",
     ),
+    ParameterSpec(
+        "wait_for_subscribers_timeout_s",
+        0.0,
+        "Longest wait for those subscribers [s]; when it passes, the node logs which "
+        "topics lack them and exits 1 without publishing (0 = wait without limit).",
+    ),
     ParameterSpec("maneuver.duration_s", 20.0, "Family runs: duration [s]."),
     ParameterSpec("maneuver.speed_kmh", 80.0, "Family runs: initial speed [km/h]."),
     ParameterSpec("maneuver.torque_nm", 0.0, "Family runs: total drive torque [N m]."),
@@ -126,6 +133,11 @@ class SimNode(rclpy.node.Node):
             vehicle = load_vehicle(v["vehicle"])
             sigma = _sigma(v)
             decimation = _decimation(v["rate_hz"])
+            wait_timeout_s = v["wait_for_subscribers_timeout_s"]
+            if not (math.isfinite(wait_timeout_s) and wait_timeout_s >= 0.0):
+                raise ParameterError(
+                    f"wait_for_subscribers_timeout_s must be finite and >= 0, got {wait_timeout_s}"
+                )
         except (ParameterError, ManeuverError, VehicleFileError, TirError, ValueError) as err:
             self.get_logger().fatal(f"bad parameter: {err}")
             raise SystemExit(2) from None
@@ -156,6 +168,7 @@ class SimNode(rclpy.node.Node):
             )
         self._msgs = msgs
         self.wait_for_subscribers = int(v["wait_for_subscribers"])
+        self.wait_timeout_s = wait_timeout_s
         self.steps_published = 0
         self.lateness_s: deque[float] = deque(maxlen=_LATENESS_KEPT)
         """Publish time − due time of recent real-time steps [s] (logged at the end)."""
@@ -169,7 +182,9 @@ class SimNode(rclpy.node.Node):
 
     def _publish_loop(self) -> None:
         try:
-            self._wait_for_subscribers()
+            if not self._wait_for_subscribers():
+                self._flag.set("error")
+                return
             self._publish_runs()
         except Exception as err:  # a crash here must still stop the process cleanly
             self.get_logger().fatal(f"publisher thread failed: {err!r}")
@@ -182,12 +197,37 @@ class SimNode(rclpy.node.Node):
         )
         self._flag.set("finished")
 
-    def _wait_for_subscribers(self) -> None:
+    def _wait_for_subscribers(self) -> bool:
+        """Hold until every publisher has ``wait_for_subscribers`` subscribers.
+
+        True when they are there (or a stop was requested meanwhile); False, after a
+        log line naming the topics that lack them, when the timeout passed first.
+        """
         n = self.wait_for_subscribers
-        while n and not self._flag.is_set():
-            if all(p.get_subscription_count() >= n for p in self.pubs.values()):
+        if not n:
+            return True
+        limit = self.wait_timeout_s
+        self.get_logger().info(
+            f"waiting for {n} subscriber(s) on each of "
+            f"{', '.join(p.topic_name for p in self.pubs.values())}"
+            + (f" (at most {limit:g} s)" if limit > 0.0 else "")
+        )
+        deadline = time.monotonic() + limit
+        while not self._flag.is_set():
+            counts = {p.topic_name: p.get_subscription_count() for p in self.pubs.values()}
+            missing = {t: c for t, c in counts.items() if c < n}
+            if not missing:
                 break
+            if limit > 0.0 and time.monotonic() > deadline:
+                lacking = ", ".join(f"{t} has {c}" for t, c in missing.items())
+                self.get_logger().fatal(
+                    f"gave up waiting after {limit:g} s (wait_for_subscribers_timeout_s): "
+                    f"{lacking} subscriber(s), {n} wanted (wait_for_subscribers); "
+                    "exiting without publishing"
+                )
+                return False
             self._flag.wait(0.05)
+        return True
 
     def _publish_runs(self) -> None:
         start_wall = origin_ns = None

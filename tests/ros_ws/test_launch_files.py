@@ -8,10 +8,15 @@ console script that colcon installs to ``lib/<pkg>/``, every
 ``$(find-pkg-share pkg)/config/...`` is a YAML file the package installs, every
 ``$(var x)`` is declared by an ``<arg>``, every parameter a launch file sets is one the
 node declares (a ``ParameterSpec`` in the package), with the declared type (launch
-types a value by parsing it as YAML, and the nodes reject a type change), and every
-launch argument that overrides a parameter defaults to the YAML's value, or to the
-node's own default where the YAML does not set it: a launch without arguments runs
-what the configuration files say.
+types a value by parsing it as YAML; the nodes take an integer for a double and refuse
+any other type change), and every launch argument that overrides a parameter defaults
+to the YAML's value, or to the node's own default where the YAML does not set it: a
+launch without arguments runs what the configuration files say.
+
+Then what each launch file promises, resolved as ``ros2 launch`` would for given
+arguments (:func:`launched_nodes`) and parsed with the tools' own argument parsers:
+the player waits for the estimator's subscriptions, the recorder gets ``force``, and a
+node that exits stops the launch.
 """
 
 from __future__ import annotations
@@ -195,7 +200,8 @@ def test_set_parameters_are_declared_typed_and_default_to_the_yaml(path: Path) -
             # launch infers a parameter's type by parsing the text as YAML.
             text = defaults[var.group(1)] if var else value
             launched = yaml.safe_load(text)
-            assert type(launched) is type(expected), (
+            int_for_double = type(launched) is int and type(expected) is float
+            assert type(launched) is type(expected) or int_for_double, (
                 f"{path}: {name}.{key} gets {text!r} ({type(launched).__name__}); the node "
                 f"declares a {type(expected).__name__} and would refuse it"
             )
@@ -223,3 +229,115 @@ def test_sim_time_follows_the_clock_source() -> None:
     (estimator,) = [n for n in play.iter("node") if n.get("exec") == "estimator_node"]
     est_params = {p.get("name"): p.get("value") for p in estimator.findall("param")}
     assert est_params["use_sim_time"] == "$(var clock)"
+
+
+# --- what the launch files promise, resolved for given arguments --------------------------------
+
+TRUE_WORDS = {"true", "1"}  # launch's IfCondition: true/false/1/0, any case
+
+
+def arguments(path: Path) -> dict[str, str | None]:
+    """``{name: default}`` of every ``<arg>`` (None: required)."""
+    return {arg.get("name"): arg.get("default") for arg in parse(path).iter("arg")}
+
+
+def substitute(text: str, values: dict[str, str]) -> str:
+    return VAR.sub(lambda m: values[m.group(1)], text)
+
+
+def launched_nodes(path: Path, **given: str) -> list[tuple[ET.Element, list[str]]]:
+    """The ``<node>`` elements that run for launch arguments ``given`` (else the
+    defaults), each with its ``args`` resolved and split as ``ros2 launch`` splits them."""
+    values = {k: v for k, v in arguments(path).items() if v is not None} | given
+    nodes = []
+    for node in parse(path).iter("node"):
+        if_ = node.get("if")
+        unless = node.get("unless")
+        if if_ is not None and substitute(if_, values).lower() not in TRUE_WORDS:
+            continue
+        if unless is not None and substitute(unless, values).lower() in TRUE_WORDS:
+            continue
+        nodes.append((node, substitute(node.get("args", ""), values).split()))
+    return nodes
+
+
+def the_one(path: Path, exe: str, **given: str) -> tuple[ET.Element, list[str]]:
+    found = [(n, a) for n, a in launched_nodes(path, **given) if n.get("exec") == exe]
+    assert len(found) == 1, f"{path.name} with {given}: {len(found)} {exe} nodes run, expected 1"
+    return found[0]
+
+
+def test_launch_arguments_and_their_defaults() -> None:
+    assert arguments(LAUNCH_FILES["sim_record"]) == {
+        "scenario": "scen1",
+        "out": None,
+        "force": "false",
+    }
+    play = arguments(LAUNCH_FILES["play_estimator"])
+    assert play == {
+        "bag": None,
+        "rate": "1.0",
+        "clock": "true",
+        "backend": "kinematic",
+        "wait_s": "30.0",
+    }
+    (rtf,) = [
+        a
+        for a in parse(LAUNCH_FILES["sim_estimator"]).iter("arg")
+        if a.get("name") == "real_time_factor"
+    ]
+    assert rtf.get("default") == "1.0"
+    # The nodes take an integer for a double: the description must not ask for "2.0, not 2".
+    assert "not 2" not in rtf.get("description", "")
+
+
+@pytest.mark.parametrize("force", ["false", "true", "True", "0", "1"])
+def test_sim_record_passes_force_to_the_recorder(force: str, tmp_path: Path) -> None:
+    from sideslip_sim.tools import record
+
+    _node, args = the_one(
+        LAUNCH_FILES["sim_record"], "sideslip-record", out=str(tmp_path / "bag"), force=force
+    )
+    options = record.parse_options(record.build_parser().parse_args(args))
+    assert options.out == tmp_path / "bag"
+    assert options.force is (force.lower() in TRUE_WORDS)
+
+
+def test_sim_record_does_not_hang_when_the_recorder_exits() -> None:
+    """The recorder refusing ``out`` (exit 2) stops the launch, and the simulator's wait
+    for the recorder has a limit of its own."""
+    path = LAUNCH_FILES["sim_record"]
+    for force in ("false", "true"):
+        for node, _args in launched_nodes(path, out="bags/x", force=force):
+            assert node.get("on_exit") == "shutdown", f"{path.name}: {node.get('exec')}"
+    sim, _ = the_one(path, "sim_node", out="bags/x")
+    params = {p.get("name"): p.get("value") for p in sim.findall("param") if p.get("name")}
+    assert int(params["wait_for_subscribers"]) >= 1
+    assert 0.0 < float(params["wait_for_subscribers_timeout_s"]) <= 60.0
+
+
+@pytest.mark.parametrize("clock", ["true", "false"])
+def test_play_estimator_player_waits_for_the_estimator_inputs(clock: str, tmp_path: Path) -> None:
+    from sideslip_msgs_py import topics
+    from sideslip_sim.tools import play
+
+    path = LAUNCH_FILES["play_estimator"]
+    _node, args = the_one(path, "sideslip-play", bag=str(tmp_path / "bag"), clock=clock)
+    options = play.parse_options(play.build_parser().parse_args(args))
+    assert options.bag == tmp_path / "bag"
+    assert (options.clock_hz is not None) is (clock == "true")
+    assert options.wait_subscribers_s == float(arguments(path)["wait_s"]) > 0.0
+    # Exactly the estimator's inputs: nothing in this launch subscribes to ground truth,
+    # so waiting for every played topic would always run into the timeout.
+    assert sorted(options.wait_topics) == sorted(topics.SENSOR_TOPICS)
+    assert options.wait_count == 1
+    # A matched subscription is not yet a spinning node: the estimator gets time to start.
+    assert 0.0 < options.delay_s <= 2.0
+    for node, _args in launched_nodes(path, bag="b", clock=clock):
+        assert node.get("on_exit") == "shutdown", f"{path.name}: {node.get('exec')}"
+
+
+def test_every_node_of_sim_estimator_stops_the_launch_when_it_exits() -> None:
+    path = LAUNCH_FILES["sim_estimator"]
+    for node, _args in launched_nodes(path):
+        assert node.get("on_exit") == "shutdown", f"{path.name}: {node.get('exec')}"

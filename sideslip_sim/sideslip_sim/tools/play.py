@@ -3,9 +3,11 @@
 Each message's recorded CDR bytes are published unchanged, at its log time relative to
 the first message scaled by ``--rate``, on an absolute schedule
 (:class:`~.schedule.Schedule`): publishing runs on its own thread and never
-accumulates drift. The executor thread only serves ``/clock`` (``--clock``). At the
-end of the bag the player waits (briefly) until reliable subscribers have acknowledged
-everything, then exits 0.
+accumulates drift. The executor thread only serves ``/clock`` (``--clock``). With
+``--wait-subscribers`` the first message waits until the awaited topics have their
+subscribers (bounded; then it plays anyway, with a warning). At the end of the bag the
+player waits (briefly) until reliable subscribers have acknowledged everything, then
+exits 0.
 """
 
 from __future__ import annotations
@@ -72,7 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
             "Put BAG before options that take several values (--topics, --remap). ROS "
             "arguments go after --ros-args. Exit status: 0 at the end or when stopped, "
             "2 for refused input (missing or unreadable bag, unknown message type, bad "
-            "--remap, non-positive --rate), 1 if publishing failed part way. "
+            "--remap, non-positive --rate, a --wait-topics topic that is not played), 1 if "
+            "publishing failed part way. "
             "Example: sideslip-play runs/drive1 --rate 2 --clock --topics /vehicle/imu "
             "--remap /vehicle/imu:=/car/imu"
         ),
@@ -115,9 +118,26 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         metavar="S",
         help=(
-            "before starting, wait up to S seconds until every publisher has matched a "
-            "subscription (then start anyway, with a warning)"
+            "before the first message, wait up to S seconds until every awaited topic "
+            "(--wait-topics, default all played) has matched --wait-count subscriptions; "
+            "after S seconds play anyway, with a warning naming the topics that lack them"
         ),
+    )
+    parser.add_argument(
+        "--wait-topics",
+        nargs="+",
+        metavar="T",
+        help=(
+            "the topics to wait for, as published (after --remap), e.g. only those an "
+            "estimator subscribes to (default: every played topic)"
+        ),
+    )
+    parser.add_argument(
+        "--wait-count",
+        type=int,
+        default=1,
+        metavar="N",
+        help="subscriptions each awaited topic must have matched (default 1)",
     )
     parser.add_argument(
         "--reliable",
@@ -145,6 +165,8 @@ def parse_options(args: argparse.Namespace) -> PlayOptions:
         topics=tuple(dict.fromkeys(args.topics or ())),
         remaps=tuple(parse_remaps(args.remap).items()),
         wait_subscribers_s=check_non_negative(args.wait_subscribers, "--wait-subscribers"),
+        wait_topics=tuple(args.wait_topics or ()),
+        wait_count=args.wait_count,
         reliable=args.reliable,
         delay_s=check_non_negative(args.delay, "--delay"),
     )
@@ -161,6 +183,7 @@ class Player(Node):
         self._options = options
         self._flag = flag
         self._pubs: dict[str, Any] = {}
+        self._awaited: list[Any] = []
         for topic in plan.topics:
             try:
                 self._pubs[topic.bag_topic] = self.create_publisher(
@@ -169,6 +192,8 @@ class Player(Node):
             except Exception as err:  # e.g. an invalid name given with --remap
                 msg = f"{PROG}: error: cannot publish on {topic.out_topic}: {err}"
                 raise SystemExit(msg) from None
+            if topic.out_topic in plan.wait_topics:
+                self._awaited.append(self._pubs[topic.bag_topic])
             renamed = f" as {topic.out_topic}" if topic.out_topic != topic.bag_topic else ""
             self.get_logger().info(
                 f"{topic.bag_topic}{renamed}: {topic.count} messages, {topic.msgtype}, "
@@ -242,17 +267,31 @@ class Player(Node):
         return published
 
     def _wait_for_subscribers(self) -> bool:
-        """Wait until every publisher is matched; False when stopped meanwhile."""
-        deadline = time.monotonic() + self._options.wait_subscribers_s
+        """Wait until every awaited publisher has matched ``wait_count`` subscriptions
+        or the timeout passed (then warn and play anyway); False when stopped meanwhile."""
+        limit_s, n = self._options.wait_subscribers_s, self._options.wait_count
+        names = ", ".join(p.topic_name for p in self._awaited)
+        self.get_logger().info(
+            f"waiting up to {limit_s:g} s for {n} subscriber(s) on each of {names}"
+        )
+        deadline = time.monotonic() + limit_s
+        seen: dict[str, int] = dict.fromkeys((p.topic_name for p in self._awaited), 0)
         while True:
-            missing = [p.topic_name for p in self._pubs.values() if p.get_subscription_count() < 1]
+            counts = {p.topic_name: p.get_subscription_count() for p in self._awaited}
+            missing = {topic: c for topic, c in counts.items() if c < n}
             if not missing:
-                self.get_logger().info(f"all {len(self._pubs)} publisher(s) matched")
+                self.get_logger().info(
+                    f"all {len(counts)} publisher(s) matched {n} subscriber(s) each; playing"
+                )
                 return True
+            lacking = ", ".join(f"{topic} has {c}" for topic, c in missing.items())
+            if counts != seen:  # progress, so that a long wait shows what it waits for
+                seen = counts
+                self.get_logger().info(f"still waiting: {lacking} subscriber(s), {n} wanted")
             if time.monotonic() > deadline:
                 self.get_logger().warning(
-                    f"no subscriber after {self._options.wait_subscribers_s:g} s on "
-                    f"{', '.join(missing)}; playing anyway"
+                    f"gave up waiting after {limit_s:g} s (--wait-subscribers): {lacking} "
+                    f"subscriber(s), {n} wanted; playing anyway"
                 )
                 return True
             if self._flag.wait(MATCH_POLL_S):

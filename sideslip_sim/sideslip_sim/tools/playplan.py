@@ -36,8 +36,10 @@ class PlayOptions:
         loop: start again at the end of the bag, until stopped.
         topics: bag topics to play; empty: all.
         remaps: (bag topic, published topic) pairs.
-        wait_subscribers_s: wait up to this long [s] for every publisher to match a
-            subscription before starting (0: do not wait).
+        wait_subscribers_s: wait up to this long [s] before starting until the awaited
+            publishers have matched ``wait_count`` subscriptions each (0: do not wait).
+        wait_topics: the published topics (after ``remaps``) to wait for; empty: all.
+        wait_count: subscriptions each awaited publisher must have matched (>= 1).
         reliable: publish every topic reliable with a deep keep-last history.
         delay_s: wait this long [s] before the first message (after the wait above).
     """
@@ -49,6 +51,8 @@ class PlayOptions:
     topics: tuple[str, ...] = ()
     remaps: tuple[tuple[str, str], ...] = ()
     wait_subscribers_s: float = 0.0
+    wait_topics: tuple[str, ...] = ()
+    wait_count: int = 1
     reliable: bool = False
     delay_s: float = 0.0
 
@@ -74,17 +78,27 @@ class PlayTopic:
 
 @dataclass(frozen=True, slots=True)
 class PlayPlan:
-    """The topics to publish and notes about choices made for the user."""
+    """The topics to publish, those to wait for, and notes about choices made for the user.
+
+    Attributes:
+        topics: every topic to publish.
+        wait_topics: published names of the topics whose subscribers are awaited before
+            the first message (empty when the player does not wait).
+        notes: choices made for the user, printed before playing.
+    """
 
     topics: tuple[PlayTopic, ...]
     notes: tuple[str, ...] = ()
+    wait_topics: tuple[str, ...] = ()
 
 
 def plan_playback(source: BagSource, options: PlayOptions) -> PlayPlan:
     """Check ``options`` against the bag and choose every publisher.
 
     Raises:
-        OptionError: ``--topics`` or a ``--remap`` source names a topic the bag lacks.
+        OptionError: ``--topics`` or a ``--remap`` source names a topic the bag lacks;
+            ``--wait-topics`` names a topic that is not played; ``--wait-topics`` or
+            ``--wait-count`` without a ``--wait-subscribers`` timeout.
         UnknownTypeError: a topic to play has a type with no Python message class.
     """
     in_bag = sorted(source.topics)
@@ -114,4 +128,25 @@ def plan_playback(source: BagSource, options: PlayOptions) -> PlayPlan:
         if options.reliable:
             spec = reliable(spec)
         planned.append(PlayTopic(name, out, info.msgtype, spec, info.count))
-    return PlayPlan(tuple(planned), tuple(notes))
+    return PlayPlan(tuple(planned), tuple(notes), _wait_topics(options, planned))
+
+
+def _wait_topics(options: PlayOptions, planned: list[PlayTopic]) -> tuple[str, ...]:
+    """The published names to wait for; refuses wait options that would do nothing."""
+    if options.wait_subscribers_s <= 0:
+        if options.wait_topics or options.wait_count != 1:
+            msg = "--wait-topics and --wait-count need --wait-subscribers S (S > 0)"
+            raise OptionError(msg)
+        return ()
+    if options.wait_count < 1:
+        msg = f"--wait-count must be >= 1, got {options.wait_count}"
+        raise OptionError(msg)
+    published = [t.out_topic for t in planned]
+    for topic in options.wait_topics:
+        if topic not in published:
+            msg = (
+                f"--wait-topics {topic}: not played from {options.bag} "
+                f"(played: {', '.join(published) or 'nothing'})"
+            )
+            raise OptionError(msg)
+    return tuple(dict.fromkeys(options.wait_topics)) or tuple(published)

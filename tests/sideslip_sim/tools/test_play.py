@@ -178,6 +178,45 @@ def test_plan_refuses_topics_and_remaps_that_the_bag_lacks(tmp_path: Path) -> No
         plan_playback(source, PlayOptions(bag, remaps=(("/nope", "/x"),)))
 
 
+def test_plan_waits_for_the_named_published_topics_or_for_all(tmp_path: Path) -> None:
+    bag = sample_bag(tmp_path / "b", 10)
+    source = open_bag(bag)
+    assert plan_playback(source, PlayOptions(bag)).wait_topics == ()
+    waiting = plan_playback(source, PlayOptions(bag, wait_subscribers_s=5.0))
+    assert sorted(waiting.wait_topics) == sorted(topics.SAMPLE_TOPICS)
+    named = PlayOptions(
+        bag,
+        wait_subscribers_s=5.0,
+        wait_topics=("/car/imu", topics.TWIST),
+        remaps=((topics.IMU, "/car/imu"),),
+    )
+    assert plan_playback(source, named).wait_topics == ("/car/imu", topics.TWIST)
+
+
+@pytest.mark.parametrize(
+    ("options", "names"),
+    [
+        ({"wait_subscribers_s": 5.0, "wait_topics": ("/nope",)}, "--wait-topics /nope"),
+        # Named by its bag name although --remap publishes it under another one.
+        (
+            {
+                "wait_subscribers_s": 5.0,
+                "wait_topics": (topics.IMU,),
+                "remaps": ((topics.IMU, "/car/imu"),),
+            },
+            f"--wait-topics {topics.IMU}",
+        ),
+        ({"wait_subscribers_s": 5.0, "wait_count": 0}, "--wait-count"),
+        ({"wait_topics": (topics.IMU,)}, "--wait-subscribers"),
+        ({"wait_count": 2}, "--wait-subscribers"),
+    ],
+)
+def test_plan_refuses_wait_options_that_cannot_work(tmp_path: Path, options, names) -> None:
+    bag = sample_bag(tmp_path / "b", 10)
+    with pytest.raises(OptionError, match=names):
+        plan_playback(open_bag(bag), PlayOptions(bag, **options))
+
+
 def test_truncated_mcap_opens_with_its_readable_messages_in_log_time_order(
     tmp_path: Path,
 ) -> None:
@@ -238,6 +277,9 @@ def unknown_type_bag(path: Path) -> Path:
         (["{bag}", "--topics", "/nope"], "/nope"),
         (["{bag}", "--clock", "0"], "--clock"),
         (["{unknown}"], "nonexistent_msgs/msg/Thing"),
+        (["{bag}", "--wait-subscribers", "5", "--wait-topics", "/nope"], "--wait-topics /nope"),
+        (["{bag}", "--wait-topics", "/vehicle/imu"], "--wait-subscribers"),
+        (["{bag}", "--wait-subscribers", "-1"], "--wait-subscribers"),
     ],
 )
 def test_bad_input_is_one_line_naming_it_and_exit_2(
@@ -352,3 +394,70 @@ def test_truncated_bag_plays_its_readable_part_and_says_so(spawn, tmp_path):
     out = player.output()
     assert "truncated" in out and "unreadable after" in out
     assert f"played {readable} messages" in out
+
+
+# --- real DDS: waiting for subscribers (what play_estimator.launch.xml relies on) -------------
+
+
+def collect(probe, topic: str, msg_type, qos) -> tuple[object, list[bytes]]:
+    """A raw subscription of the probe and the list its messages go to."""
+    inbox: list[bytes] = []
+    sub = probe.node.create_subscription(msg_type, topic, inbox.append, qos, raw=True)
+    return sub, inbox
+
+
+def test_wait_holds_the_first_message_until_a_subscriber_matches(spawn, probe, tmp_path):
+    bag = sample_bag(tmp_path / "b", 200)
+    expected = raw_messages(bag)[topics.IMU]
+    # Ground truth is played but nobody listens to it: only /vehicle/imu is awaited.
+    player = spawn(
+        "sideslip-play", str(bag), "--reliable", "--wait-subscribers", "20",
+        "--wait-topics", topics.IMU,
+    )  # fmt: skip
+    # The player's publisher exists before anyone subscribes: without the wait it would
+    # be publishing now, into nothing (volatile durability keeps no history).
+    probe.wait_for_publishers(topics.IMU)
+    wait_for(lambda: "waiting up to 20 s" in player.output(), 10, "the player's wait")
+    assert player.proc.poll() is None, player.output()
+    _sub, imu = collect(probe, topics.IMU, Imu, RELIABLE_DEEP)
+    assert player.proc.wait(30) == 0, player.output()
+    wait_for(lambda: len(imu) == 200, 5, "all 200 IMU messages")
+    assert imu == expected  # from the bag's first message on, in order
+    out = player.output()
+    assert out.index("waiting up to 20 s for 1 subscriber(s) on each of /vehicle/imu") < out.index(
+        "all 1 publisher(s) matched 1 subscriber(s) each; playing"
+    )
+
+
+def test_wait_count_holds_until_that_many_subscribers_match(spawn, probe, tmp_path):
+    bag = sample_bag(tmp_path / "b", 200)
+    expected = raw_messages(bag)[topics.IMU]
+    player = spawn(
+        "sideslip-play", str(bag), "--reliable", "--topics", topics.IMU,
+        "--wait-subscribers", "20", "--wait-count", "2",
+    )  # fmt: skip
+    _first, early = collect(probe, topics.IMU, Imu, RELIABLE_DEEP)
+    # The player has matched one subscriber (it says so): one too few, so nothing is played.
+    wait_for(
+        lambda: f"still waiting: {topics.IMU} has 1 subscriber(s), 2 wanted" in player.output(),
+        20,
+        "the player to match the first subscription",
+    )
+    assert "publisher(s) matched" not in player.output() and early == []
+    _second, inbox = collect(probe, topics.IMU, Imu, RELIABLE_DEEP)
+    assert player.proc.wait(30) == 0, player.output()
+    wait_for(lambda: len(inbox) == 200, 5, "all 200 messages on the second subscription")
+    assert inbox == expected
+
+
+def test_wait_timeout_plays_anyway_and_names_the_topics_without_subscribers(spawn, tmp_path):
+    bag = sample_bag(tmp_path / "b", 40)
+    player = spawn(
+        "sideslip-play", str(bag), "--topics", topics.IMU, topics.TWIST,
+        "--wait-subscribers", "0.5",
+    )  # fmt: skip
+    assert player.proc.wait(30) == 0, player.output()
+    out = player.output()
+    assert "gave up waiting after 0.5 s (--wait-subscribers)" in out
+    assert f"{topics.IMU} has 0" in out and f"{topics.TWIST} has 0" in out
+    assert "playing anyway" in out and "played 80 messages" in out
