@@ -10,7 +10,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 from ros_support import BIN, wait_for
@@ -20,36 +19,14 @@ from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64
 
 from sideslip_msgs_py import topics
-from sideslip_msgs_py.bag import open_raw_bag, read_bag, write_bag
+from sideslip_msgs_py.bag import open_raw_bag, read_bag
 from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
 from sideslip_sim.tools import record
 from sideslip_sim.tools.bagmeta import IN_PROGRESS_KEY
 from sideslip_sim.tools.reindex import reindex
 from sideslip_training.dataset import load_runs
 
-T0_NS = 1_700_000_000 * 10**9
-STEP_NS = 2_500_000  # 400 Hz
-
-
-def sample_bag(path: Path, n: int, *, seed: int = 0) -> Path:
-    """A bag of ``n`` noisy 400-Hz samples on all five sample topics (not physics)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * (STEP_NS * 1e-9)
-    arrays = SampleArrays(
-        stamp_ns=T0_NS + np.arange(n, dtype=np.int64) * STEP_NS,
-        x_v_mps=20.0 + rng.normal(0, 0.28, n),
-        y_v_mps=0.8 * np.sin(np.pi * t) + rng.normal(0, 0.28, n),
-        x_a_mps2=rng.normal(0, 0.1, n),
-        y_a_mps2=rng.normal(0, 0.1, n),
-        yaw_rate_radps=rng.normal(0, 0.0035, n),
-        stl_m=0.02 * np.sin(np.pi * t),
-        stl_rate_mps=0.02 * np.pi * np.cos(np.pi * t),
-        truth_v_x_mps=np.full(n, 20.0),
-        truth_v_y_mps=0.8 * np.sin(np.pi * t),
-        truth_yaw_rate_radps=np.zeros(n),
-    )
-    return write_bag(path, arrays, sigma=SensorNoiseSigma.paper(), run_metadata={"seed": seed})
+from .test_record import sample_bag
 
 
 def metadata(bag: Path) -> dict:
