@@ -128,7 +128,14 @@ def run(seconds: float = 30.0, executor: str = "events", domain_id: int = 91) ->
     sim_log = tempfile.TemporaryFile()
     procs = [
         subprocess.Popen(
-            [str(BIN / "sideslip-estimator"), "--ros-args", "-p", "status_rate_hz:=1.0"],
+            [
+                str(BIN / "sideslip-estimator"),
+                "--ros-args",
+                "-p",
+                "backend:=kinematic",
+                "-p",
+                "status_rate_hz:=1.0",
+            ],
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,

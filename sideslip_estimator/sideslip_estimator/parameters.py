@@ -12,10 +12,10 @@ from .inputs import InputLimits
 PARAMETERS = (
     ParameterSpec(
         "backend",
-        "kinematic",
-        "Estimator back-end: kinematic (atan2(Y_v, X_v)), single_track (bicycle-model "
-        "Kalman filter), ukf (unscented Kalman filter, Magic Formula tyres) or pso_lstm "
-        "(an exported network, pso_lstm.model_file).",
+        "pso_lstm",
+        "Estimator back-end: pso_lstm (a trained network, pso_lstm.model_file; by default "
+        "the shipped fleet model), kinematic (atan2(Y_v, X_v)), single_track "
+        "(bicycle-model Kalman filter) or ukf (unscented Kalman filter, Magic Formula tyres).",
     ),
     ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
     ParameterSpec(

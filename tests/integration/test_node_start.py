@@ -46,6 +46,7 @@ def test_estimator_node_with_integer_doubles_runs_and_publishes_status(spawn, pr
     estimator = spawn(
         "estimator_node",
         "--ros-args",
+        "-p", "backend:=kinematic",  # its parameters are declared when it is selected
         "-p", "status_rate_hz:=5",
         "-p", "max_gap_s:=1",
         "-p", "kinematic.velocity_sigma_mps:=1",
@@ -65,7 +66,9 @@ def test_estimator_node_with_integer_doubles_runs_and_publishes_status(spawn, pr
     ],
 )
 def test_a_string_for_a_double_exits_2_naming_the_parameter(spawn, executable, parameter):
-    node = spawn(executable, "--ros-args", "-p", f"{parameter}:=fast")
+    # A back-end's parameters are declared when it is selected.
+    backend = ["-p", "backend:=kinematic"] if parameter.startswith("kinematic.") else []
+    node = spawn(executable, "--ros-args", *backend, "-p", f"{parameter}:=fast")
     assert node.proc.wait(30) == 2, node.output()
     out = node.output()
     assert f"bad parameter: parameter {parameter} must be a double" in out

@@ -180,7 +180,7 @@ def test_bad_parameter_exits_2_naming_it(spawn, args, named):
 
 
 def test_watch_reports_the_estimate_against_ground_truth(spawn, probe):
-    spawn("sideslip-estimator")
+    spawn("sideslip-estimator", "--ros-args", "-p", "backend:=kinematic")
     watch = spawn("sideslip-watch", "--duration", "10", "--quiet")
     spawn("sideslip-sim", *sim_args("-p", "noise:=none", "-p", "loop:=true"))
     assert watch.proc.wait(60) == 0, watch.output()

@@ -278,7 +278,7 @@ def test_launch_arguments_and_their_defaults() -> None:
         "bag": None,
         "rate": "1.0",
         "clock": "true",
-        "backend": "kinematic",
+        "backend": "pso_lstm",
         "wait_s": "30.0",
     }
     (rtf,) = [
