@@ -17,6 +17,7 @@ cache for many runs in worker processes.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import multiprocessing
@@ -72,9 +73,16 @@ def check_values(values: Mapping[str, Any]) -> dict[str, Any]:
 
 def params_of_vehicle(vehicle: Mapping[str, Any]) -> dict[str, Any]:
     """The ``ukf`` params file contents of a simulated car (its true nominal values)."""
+    return dict(_params_of_car(json.dumps(dict(vehicle), sort_keys=True, default=str)))
+
+
+@functools.lru_cache(maxsize=256)
+def _params_of_car(vehicle_json: str) -> dict[str, Any]:
+    # One Magic Formula fit per car (scipy, tens of ms), not one per run and call: the
+    # trainer asks for a run's columns once for its inputs and once for its prior.
     from .benchmark_estimators import nominal_parameters
 
-    return nominal_parameters(BACKEND, vehicle)
+    return nominal_parameters(BACKEND, json.loads(vehicle_json))
 
 
 def run_params(run: Run, params_file: str | None) -> tuple[dict[str, Any], float]:
@@ -169,20 +177,37 @@ def columns(
     """The observer columns of ``run``, from the disk cache when there."""
     params, stl = run_params(run, params_file)
     path = cache_dir() / f"{_digest(run, params, values, stl)}.npz"
-    if path.exists():
-        try:
-            with np.load(path) as data:
-                got = {c: data[c] for c in OBSERVER_COLUMNS}
-            if all(len(v) == len(run.samples.stamp_ns) for v in got.values()):
-                return got
-        except (OSError, KeyError, ValueError):
-            pass  # a damaged cache entry: compute it again
-    out = compute(run, params, values, stl)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez(tmp, **out)
-    tmp.replace(path)
+    recent = _RECENT.get(path)
+    if recent is not None:
+        return recent
+    out = _load(path, len(run.samples.stamp_ns))
+    if out is None:
+        out = compute(run, params, values, stl)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, **out)
+        tmp.replace(path)
+    _RECENT[path] = out
+    while len(_RECENT) > _RECENT_RUNS:
+        _RECENT.pop(next(iter(_RECENT)))
     return out
+
+
+_RECENT_RUNS: Final = 4
+_RECENT: dict[Path, dict[str, FloatArray]] = {}
+"""The last runs' columns: the trainer reads a run's inputs and its prior in turn."""
+
+
+def _load(path: Path, samples: int) -> dict[str, FloatArray] | None:
+    """A cache entry's columns, or None when it is missing or damaged."""
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as data:
+            got = {c: data[c] for c in OBSERVER_COLUMNS}
+    except (OSError, KeyError, ValueError):
+        return None  # a damaged cache entry: compute it again
+    return got if all(len(v) == samples for v in got.values()) else None
 
 
 def _fill(run: Run, values: Mapping[str, Any], params_file: str | None) -> None:

@@ -268,16 +268,19 @@ class PsoLstmBackend:
             seen = self._observer.update(rows, stamps_ns)
             self._observed.append(self._observer.observer_row(seen))
         if self._window_net is None:
+            # The engine gives None until the window is full and NaN for a window with a
+            # non-finite input (an observer row without an estimate): no estimate.
             y = self._push(rows, stamps_ns)
-            if y is None or rows.shape[0] < self.window_steps:
+            if y is None or not math.isfinite(y):
                 return None
-        elif rows.shape[0] < self.window_steps:
+            if self.meta.prior == "none":
+                return Estimate(denormalize_beta(y, self.meta), self.variance_rad2)
+        elif rows.shape[0] < self.window_steps or (
+            self._observer is not None and len(self._observed) < self.window_steps
+        ):
             return None
-        window = rows[-self.window_steps :]
-        columns = columns_of_rows(window, self._channels)
+        columns = columns_of_rows(rows[-self.window_steps :], self._channels)
         if self._observer is not None:
-            if len(self._observed) < self.window_steps:
-                return None
             observed = np.array(self._observed)
             if not np.isfinite(observed).all():
                 return None
@@ -291,8 +294,8 @@ class PsoLstmBackend:
         if self._window_net is not None:
             x = input_matrix(columns, self.meta.features, self._vehicle)
             y = self._window_net((x - self._mean) / self._std)
-        if not math.isfinite(y):
-            return None
+            if not math.isfinite(y):
+                return None
         return Estimate(denormalize_beta(y, self.meta) + prior, self.variance_rad2)
 
     def _push(
