@@ -3,13 +3,21 @@
 No rclpy here: the node feeds it decoded message fields and publishes what it
 returns, so every rule below is tested without DDS.
 
-Stamp rules (IMU stamps, ns):
-* a stamp that goes backwards (a bag replayed in a loop, a restarted sensor) restarts
-  the window and the back-end;
-* a gap between accepted samples longer than ``max_gap_s`` restarts them too (the
-  window must hold one contiguous stretch of driving);
-* shorter gaps, longer than 1.5 sample periods, count the missing samples as
-  ``dropped`` (lost upstream or by DDS under load) and keep the window.
+Stamp rules (IMU stamps, ns; :mod:`~sideslip_estimator.stamps` keeps the time line):
+* every IMU message is counted once: accepted, rejected (with a reason) or, if it
+  never arrived, dropped (a gap of more than 1.5 nominal periods, ``input_rate_hz``,
+  counts the missing steps), so published = accepted + rejected + dropped;
+* one bad message costs that message, never the window: a repeated stamp is rejected
+  (``duplicate_stamp``), a message older than the newest (out of order, at most
+  ``max_gap_s`` behind) is skipped (``late_stamp``; a drop it had been counted as is
+  withdrawn), one stamped ahead of the line is taken back when the next two messages
+  show it (``future_stamps``; the first of them is skipped as late);
+* a stamp more than ``max_gap_s`` away either way is held until the next message: if
+  that one continues it, a new time line starts there (a pause, a bag played in a
+  loop, a restarted sensor: the window and the back-end restart, counted as ``gap`` or
+  ``stamp_backwards``); if not, it was one wrong stamp (``bad_stamp``);
+* a gap between accepted samples longer than ``max_gap_s`` restarts the window too
+  (it must hold one contiguous stretch of driving).
 """
 
 from __future__ import annotations
@@ -18,8 +26,6 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Final
-
-import numpy as np
 
 from sideslip_msgs_py.features import CHANNELS
 from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
@@ -34,10 +40,9 @@ from .inputs import (
     check_steering,
     check_twist,
 )
+from .stamps import StampLine
 from .window import SampleWindow
 
-_PERIOD_SAMPLES: Final = 32  # intervals in the running period estimate
-_RATE_CHANGE_SAMPLES: Final = 8  # this many long intervals in a row = a new (lower) rate
 _MAX_BETA_RAD: Final = math.radians(80.0)
 
 
@@ -49,12 +54,14 @@ class EstimatorParams:
     max_input_age_s: float = 0.05
     max_gap_s: float = 0.1
     min_speed_mps: float = 1.0
+    input_rate_hz: float = 400.0
+    """The model's sample rate: steps missing at this rate are counted as dropped."""
     limits: InputLimits = field(default_factory=InputLimits)
 
     def __post_init__(self) -> None:
         if self.window_steps < 1:
             raise ValueError(f"window_steps must be >= 1, got {self.window_steps}")
-        for name in ("max_input_age_s", "max_gap_s"):
+        for name in ("max_input_age_s", "max_gap_s", "input_rate_hz"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
@@ -76,6 +83,8 @@ class EstimatorStats:
     """Full window, above min speed, but the back-end had no estimate (e.g. its own
     stricter speed limit)."""
     last_rejection: str = ""
+    future_stamps: int = 0
+    """Messages found to carry a stamp ahead of the time line (kept, restamped)."""
 
 
 @dataclass(frozen=True)
@@ -102,12 +111,9 @@ class Estimator:
         self.aligner = Aligner(self.params.max_input_age_s)
         self.stats = EstimatorStats()
         self._max_gap_ns = round(self.params.max_gap_s * NS_PER_S)
-        self._last_imu_ns: int | None = None
+        self.line = StampLine(round(NS_PER_S / self.params.input_rate_hz), self._max_gap_ns)
         self._last_accepted_ns: int | None = None
-        self._intervals: list[int] = []
-        self._long: list[tuple[int, int]] = []  # (interval, drops counted) in a row
-        self.period_ns: int | None = None
-        """Median IMU period over recent samples (None until measured)."""
+        self._held: tuple[str, ImuFields] | None = None  # a jump awaiting the next stamp
 
     # --- inputs -------------------------------------------------------------------------
     def _reject(self, err: InputRejected) -> InputRejected:
@@ -135,7 +141,67 @@ class Estimator:
 
     def on_imu(self, topic: str, fields: ImuFields) -> Output | None:
         stamp = fields.stamp_ns
-        self._track_stamp(stamp)
+        line = self.line
+        if self._held is not None:
+            held_topic, held = self._held
+            self._held = None
+            kind = line.classify(stamp)
+            if kind != "next" and line.continues(held.stamp_ns, stamp):
+                self._new_line(held_topic, held)
+            else:
+                self._reject(
+                    InputRejected(
+                        "bad_stamp",
+                        f"{held_topic}: stamp {held.stamp_ns} jumped "
+                        f"{(held.stamp_ns - (line.last_ns or 0)) / 1e6:+.1f} ms off the time "
+                        "line and the next message did not follow it",
+                    )
+                )
+        kind = line.classify(stamp)
+        if kind == "first":
+            line.start(stamp)
+        elif kind == "next":
+            line.advance(stamp)
+        elif kind == "jump":
+            self._held = (topic, fields)
+            return None
+        elif kind == "duplicate":
+            raise self._reject(InputRejected("duplicate_stamp", f"{topic}: stamp {stamp} repeated"))
+        elif line.late(stamp) == "late":
+            self.stats.dropped = line.dropped
+            behind = ((line.last_ns or stamp) - stamp) / 1e6
+            raise self._reject(
+                InputRejected(
+                    "late_stamp",
+                    f"{topic}: stamp {stamp} is {behind:.1f} ms behind the newest: "
+                    "arrived out of order, skipped",
+                )
+            )
+        else:  # the newest message carried a future stamp: this one continues the line
+            self.stats.future_stamps = line.future_stamps
+            if self.window.stamps_ns().size and self.window.stamps_ns()[-1] > stamp - 1:
+                before = line.last_ns or stamp
+                self.window.restamp_newest(before + (stamp - before) // 2)
+            line.advance(stamp)
+        self.stats.dropped = line.dropped
+        return self._sample(topic, fields)
+
+    def _new_line(self, topic: str, held: ImuFields) -> None:
+        """Start the time line confirmed at the held message, which enters first."""
+        last = self.line.last_ns
+        backwards = last is not None and held.stamp_ns < last
+        self.restart("stamp_backwards" if backwards else "gap")
+        if backwards:
+            self.aligner.forget_after(held.stamp_ns)  # inputs from the old time line
+        self.line.start(held.stamp_ns)
+        try:
+            self._sample(topic, held)  # the window just restarted: never an output
+        except InputRejected:
+            pass  # counted by _sample; the next message goes on
+
+    def _sample(self, topic: str, fields: ImuFields) -> Output | None:
+        """Check, align and window one IMU message whose stamp the line took."""
+        stamp = fields.stamp_ns
         try:
             check_imu(topic, fields, self.params.limits)
             row = self.aligner.sample(fields)
@@ -176,43 +242,15 @@ class Estimator:
         self.stats.estimates += 1
         return Output(stamp, v_x, estimate)
 
-    # --- stamps ---------------------------------------------------------------------------
-    def _track_stamp(self, stamp: int) -> None:
-        last = self._last_imu_ns
-        if last is not None and stamp <= last:
-            if stamp == last:
-                raise self._reject(InputRejected("duplicate_stamp", f"IMU stamp {stamp} repeated"))
-            self._last_imu_ns = stamp
-            self.restart("stamp_backwards")
-            self.aligner.forget_after(stamp)  # inputs from the old time line
-            return
-        self._last_imu_ns = stamp
-        if last is None:
-            return
-        interval = stamp - last
-        period = self.period_ns
-        if period is not None and interval > 1.5 * period:
-            if interval > self._max_gap_ns:
-                self._long.clear()
-                return  # a gap: restarts the window, never enters the period estimate
-            drops = round(interval / period) - 1
-            self.stats.dropped += drops
-            self._long.append((interval, drops))
-            if len(self._long) >= _RATE_CHANGE_SAMPLES:
-                # Not drops but a slower source (a 100-Hz bag after a 400-Hz run):
-                # take the new period and withdraw the drops counted for it.
-                self.stats.dropped -= sum(d for _, d in self._long)
-                self.period_ns = int(np.median([i for i, _ in self._long]))
-                self._long.clear()
-                self._intervals.clear()
-            return
-        self._long.clear()
-        self._intervals.append(interval)
-        if len(self._intervals) >= _PERIOD_SAMPLES:
-            self.period_ns = int(np.median(self._intervals))
-            self._intervals.clear()
-        elif period is None and len(self._intervals) >= 4:
-            self.period_ns = int(np.median(self._intervals))
+    @property
+    def input_rate_hz(self) -> float | None:
+        """Measured IMU rate [Hz] (None until measured); compare ``params.input_rate_hz``."""
+        return self.line.rate_hz
+
+    @property
+    def held(self) -> int:
+        """Messages held (0 or 1): a stamp jump awaiting the next message."""
+        return int(self._held is not None)
 
     def restart(self, why: str) -> None:
         """Empty the window and reset the back-end (counted under ``why``)."""
@@ -220,11 +258,6 @@ class Estimator:
         self.window.clear()
         self.backend.reset()
         self._last_accepted_ns = None
-        if why == "stamp_backwards":
-            # Another recording or a restarted source: its rate may differ.
-            self.period_ns = None
-            self._intervals.clear()
-            self._long.clear()
 
     @property
     def fill(self) -> tuple[int, int]:

@@ -56,6 +56,13 @@ class SampleWindow:
         view.flags.writeable = False
         return view
 
+    def restamp_newest(self, stamp_ns: int) -> None:
+        """Correct the newest row's stamp (a message found to carry a wrong one)."""
+        if not self._count:
+            raise IndexError("restamp_newest on an empty window")
+        i = (self._next - 1) % self.length
+        self._stamps[i] = self._stamps[i + self.length] = stamp_ns
+
     def clear(self) -> None:
         self._next = 0
         self._count = 0
