@@ -24,7 +24,7 @@ from sideslip_estimator.backends import BackendError, backend_factory
 from sideslip_estimator.estimator import Estimator
 from sideslip_estimator.inputs import InputRejected
 from sideslip_estimator.parameters import PARAMETERS, estimator_params
-from sideslip_estimator.status import Observation, assess
+from sideslip_estimator.status import Counts, Observation, assess
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.errors import MessageFieldError
 from sideslip_msgs_py.messages import RclpyMessages, imu_fields, steering_fields, twist_fields
@@ -67,6 +67,7 @@ class EstimatorNode(rclpy.node.Node):
         self.backend_name = v["backend"]
         self.silence_timeout_s = float(v["silence_timeout_s"])
         self.var_vx = float(v["velocity_sigma_mps"]) ** 2
+        self.frame_id = str(v["frame_id"])
         self.msgs = RclpyMessages()
         msgs = self.msgs
         self.inputs: dict[str, tuple[Any, str]] = {}
@@ -93,9 +94,11 @@ class EstimatorNode(rclpy.node.Node):
         )
         self._twist_msg = sideslip_twist_message(self.msgs, 0, 0.0, 0.0, 0.0, 0.0)
         self._latencies: list[float] = []
-        self._seen = self._counts()
+        self._seen = Counts.of(self.core.stats)
         self._logged: dict[str, float] = {}
         self._wrong_types_logged: set[str] = set()
+        self._wrong_frames: dict[str, str] = {}  # topic -> the line reporting it
+        self._last_imu: tuple[int, float] | None = None  # (stamp ns, monotonic s)
         # On the steady clock: with use_sim_time the ROS clock stops when /clock does,
         # and that is exactly when the status must report the silence.
         self.create_timer(
@@ -125,8 +128,19 @@ class EstimatorNode(rclpy.node.Node):
             self._log_rejection("bad_message", str(err))
         return None
 
+    def _check_frame(self, topic: str, frame_id: str) -> None:
+        """A frame other than the contract's is used as is, but reported (WARN)."""
+        if frame_id != self.frame_id and self.frame_id and topic not in self._wrong_frames:
+            line = (
+                f"{topic}: frame_id '{frame_id}', expected '{self.frame_id}' "
+                f"(used as if {self.frame_id})"
+            )
+            self._wrong_frames[topic] = line
+            self.get_logger().warning(f"frame mismatch: {line}")
+
     def _on_twist(self, msg: Any) -> None:
         name = self._received(topics.TWIST)
+        self._check_frame(name, msg.header.frame_id)
         self._guard(lambda: self.core.on_twist(name, twist_fields(msg)))
 
     def _on_steering(self, msg: Any) -> None:
@@ -136,7 +150,10 @@ class EstimatorNode(rclpy.node.Node):
     def _on_imu(self, msg: Any) -> None:
         start = time.perf_counter()
         name = self._received(topics.IMU)
-        out = self._guard(lambda: self.core.on_imu(name, imu_fields(msg)))
+        self._check_frame(name, msg.header.frame_id)
+        fields = imu_fields(msg)
+        self._last_imu = (fields.stamp_ns, time.monotonic())
+        out = self._guard(lambda: self.core.on_imu(name, fields))
         if out is None:
             return
         est = out.estimate
@@ -161,56 +178,66 @@ class EstimatorNode(rclpy.node.Node):
             self.get_logger().warning(f"rejected input ({reason}, {count} so far): {detail}")
 
     # --- status -----------------------------------------------------------------------------
-    def _counts(self) -> tuple[int, ...]:
-        s = self.core.stats
-        return (
-            sum(s.rejected.values()),
-            s.dropped,
-            sum(s.resets.values()),
-            s.estimates,
-            s.below_min_speed,
-            s.no_estimate,
-        )
-
-    def _wrong_types(self) -> list[str]:
-        lines = []
+    def _input_publishers(self) -> tuple[dict[str, list[str]], list[str]]:
+        """Per input topic the nodes publishing the contract's type, and one line per
+        publisher of another type (each logged once as an error)."""
+        publishers: dict[str, list[str]] = {}
+        wrong = []
         for sub, expected in self.inputs.values():
+            nodes = publishers.setdefault(sub.topic_name, [])
             for info in self.get_publishers_info_by_topic(sub.topic_name):
-                if info.topic_type != expected:
-                    who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                    lines.append(
+                who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                if info.node_name == "_NODE_NAME_UNKNOWN_":
+                    who = "(a node not discovered yet)"
+                if info.topic_type == expected:
+                    nodes.append(who)
+                else:
+                    wrong.append(
                         f"{sub.topic_name}: {who} publishes {info.topic_type}, expected {expected}"
                     )
-        for line in lines:
+        for line in wrong:
             if line not in self._wrong_types_logged:
                 self._wrong_types_logged.add(line)
                 self.get_logger().error(f"wrong message type: {line}")
-        return lines
+        return publishers, wrong
+
+    def _status_stamp(self) -> int:
+        """The ROS time; with use_sim_time and no /clock (ROS time 0) the newest IMU
+        stamp plus the steady time since it arrived, so the stamps still advance."""
+        now = self.get_clock().now().nanoseconds
+        if now > 0:
+            return now
+        if self._last_imu is not None:
+            stamp, rx = self._last_imu
+            return stamp + round((time.monotonic() - rx) * 1e9)
+        return time.time_ns()
 
     def _publish_status(self) -> None:
         now = time.monotonic()
-        counts = self._counts()
-        new = [c - p for c, p in zip(counts, self._seen, strict=True)]
-        self._seen = counts
+        counts = Counts.of(self.core.stats)
+        new, self._seen = counts - self._seen, counts
+        publishers, wrong_types = self._input_publishers()
+        core = self.core
         obs = Observation(
             input_ages_s={t: (None if rx is None else now - rx) for t, rx in self._last_rx.items()},
-            wrong_types=self._wrong_types(),
+            wrong_types=wrong_types,
             silence_timeout_s=self.silence_timeout_s,
-            window_fill=self.core.fill,
+            window_fill=core.fill,
             latencies_s=self._latencies,
-            new_rejections=new[0],
-            new_drops=new[1],
-            new_resets=new[2],
-            new_estimates=new[3],
-            new_below_min_speed=new[4],
-            new_no_estimate=new[5],
+            new=new,
+            publishers=publishers,
+            wrong_frames=list(self._wrong_frames.values()),
+            input_rate_hz=core.input_rate_hz,
+            expected_rate_hz=core.params.input_rate_hz,
+            held=core.held,
+            future_stamps=core.stats.future_stamps,
         )
         self._latencies = []
         status = assess(obs, self.core.stats, self.backend_name, self.core.backend.model_id)
         self.pub_status.publish(
             status_message(
                 self.msgs,
-                self.get_clock().now().nanoseconds,
+                self._status_stamp(),
                 level=status.level,
                 name=f"{self.get_name()}: sideslip estimate",
                 message=status.message,

@@ -33,6 +33,18 @@ PARAMETERS = (
         "min_speed_mps", 1.0, "No estimate below this X_v [m/s] (β is undefined at rest)."
     ),
     ParameterSpec(
+        "input_rate_hz",
+        400.0,
+        "The model's sample rate [Hz]: IMU steps missing at this rate are counted as "
+        "dropped; a measured rate more than 10 % off turns the status to WARN.",
+    ),
+    ParameterSpec(
+        "frame_id",
+        "base_link",
+        "Frame the IMU and twist must be expressed in; another frame is used as is and "
+        'reported (WARN). "" = no check.',
+    ),
+    ParameterSpec(
         "silence_timeout_s",
         0.1,
         "An input topic silent for longer than this [s] turns the status to WARN.",
@@ -62,5 +74,6 @@ def estimator_params(values: Mapping[str, object]) -> EstimatorParams:
         max_input_age_s=float(values["max_input_age_s"]),  # type: ignore[arg-type]
         max_gap_s=float(values["max_gap_s"]),  # type: ignore[arg-type]
         min_speed_mps=float(values["min_speed_mps"]),  # type: ignore[arg-type]
+        input_rate_hz=float(values["input_rate_hz"]),  # type: ignore[arg-type]
         limits=limits,
     )

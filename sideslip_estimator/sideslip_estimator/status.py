@@ -7,7 +7,7 @@ core's counters and latencies) and publishes the result on /sideslip/status.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -16,6 +16,32 @@ from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC
 from .estimator import EstimatorStats
 
 LEVEL_NAMES = {DIAGNOSTIC_OK: "OK", DIAGNOSTIC_WARN: "WARN", DIAGNOSTIC_ERROR: "ERROR"}
+
+
+@dataclass(frozen=True)
+class Counts:
+    """The core's counters at one moment; ``now - before`` gives what happened between."""
+
+    rejections: int = 0
+    drops: int = 0
+    resets: int = 0
+    estimates: int = 0
+    below_min_speed: int = 0
+    no_estimate: int = 0
+
+    @classmethod
+    def of(cls, stats: EstimatorStats) -> Counts:
+        return cls(
+            rejections=sum(stats.rejected.values()),
+            drops=stats.dropped,
+            resets=sum(stats.resets.values()),
+            estimates=stats.estimates,
+            below_min_speed=stats.below_min_speed,
+            no_estimate=stats.no_estimate,
+        )
+
+    def __sub__(self, before: Counts) -> Counts:
+        return Counts(*(getattr(self, f.name) - getattr(before, f.name) for f in fields(self)))
 
 
 @dataclass(frozen=True)
@@ -30,12 +56,19 @@ class Observation:
     window_fill: tuple[int, int]
     latencies_s: Sequence[float]
     """Receive-to-publish time of each estimate since the previous status."""
-    new_rejections: int
-    new_drops: int
-    new_resets: int
-    new_estimates: int
-    new_below_min_speed: int
-    new_no_estimate: int = 0
+    new: Counts
+    """What the counters did since the previous status."""
+    publishers: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    """Per input topic: the nodes publishing it with the contract's type."""
+    wrong_frames: Sequence[str] = ()
+    """One line per input topic whose messages carry another frame than the contract's."""
+    input_rate_hz: float | None = None
+    """Measured IMU rate (None until measured)."""
+    expected_rate_hz: float = 400.0
+    held: int = 0
+    """IMU messages held: a stamp jump waiting for the next message."""
+    future_stamps: int = 0
+    """IMU messages found stamped ahead of their time line, since start."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +82,17 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
     """Worst finding first: ERROR (unusable input), WARN (degraded), else OK."""
     errors: list[str] = list(obs.wrong_types)
     warnings: list[str] = []
+    new = obs.new
+    for topic, nodes in obs.publishers.items():
+        if len(nodes) > 1:
+            warnings.append(f"{len(nodes)} publishers on {topic}: {', '.join(nodes)}")
+    warnings.extend(obs.wrong_frames)
+    rate = obs.input_rate_hz
+    if rate is not None and abs(rate / obs.expected_rate_hz - 1.0) > 0.1:
+        warnings.append(
+            f"IMU at {rate:.1f} Hz, the model expects {obs.expected_rate_hz:g} Hz "
+            "(missing steps are counted as dropped)"
+        )
     silent = [t for t, age in obs.input_ages_s.items() if age is None]
     if silent:
         warnings.append(f"no message yet on {', '.join(silent)}")
@@ -61,16 +105,16 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
     held, length = obs.window_fill
     if not silent and not stale and held < length:
         warnings.append(f"window filling ({held}/{length})")
-    if obs.new_rejections:
-        warnings.append(f"{obs.new_rejections} input(s) rejected: {stats.last_rejection}")
-    if obs.new_drops:
-        warnings.append(f"{obs.new_drops} sample(s) dropped (gaps in IMU stamps)")
-    if obs.new_resets:
-        warnings.append(f"window restarted {obs.new_resets} time(s)")
-    if obs.new_below_min_speed and not obs.new_estimates:
+    if new.rejections:
+        warnings.append(f"{new.rejections} input(s) rejected: {stats.last_rejection}")
+    if new.drops > 0:  # < 0: late arrivals filled drops counted before
+        warnings.append(f"{new.drops} sample(s) dropped (gaps in IMU stamps)")
+    if new.resets:
+        warnings.append(f"window restarted {new.resets} time(s)")
+    if new.below_min_speed and not new.estimates:
         warnings.append("below min_speed_mps: no estimate")
-    if obs.new_no_estimate and not obs.new_estimates:
-        warnings.append(f"{model_id} gave no estimate for {obs.new_no_estimate} sample(s)")
+    if new.no_estimate and not new.estimates:
+        warnings.append(f"{model_id} gave no estimate for {new.no_estimate} sample(s)")
     if errors:
         level, message = DIAGNOSTIC_ERROR, "; ".join(errors + warnings)
     elif warnings:
@@ -93,6 +137,11 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
         "rejected_samples": str(sum(stats.rejected.values())),
         **{f"rejected[{k}]": str(v) for k, v in sorted(stats.rejected.items())},
         "dropped_samples": str(stats.dropped),
+        "held_samples": str(obs.held),
+        "future_stamps": str(obs.future_stamps),
+        "input_rate_hz": "n/a" if rate is None else f"{rate:.1f}",
+        "expected_rate_hz": f"{obs.expected_rate_hz:g}",
+        **{f"publishers[{t}]": ", ".join(nodes) or "none" for t, nodes in obs.publishers.items()},
         "below_min_speed": str(stats.below_min_speed),
         "no_estimate": str(stats.no_estimate),
         "window_restarts": str(sum(stats.resets.values())),

@@ -193,9 +193,9 @@ def test_stamp_going_backwards_restarts_the_window(estimator):
     child, feeder, beta, twist, status = rig.child, rig.feeder, rig.beta, rig.twist, rig.status
     feeder.run(0, 150)
     wait_for(lambda: len(beta) > 0, 10, "estimates")
-    # A bag played in a loop: stamps jump back to the start.
+    # A bag played in a loop: stamps jump back to the start (beyond max_gap_s).
     for k in range(20):
-        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10**9 + k * DT_NS))
+        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10 * 10**9 + k * DT_NS))
         time.sleep(0.001)
     found = wait_status(
         status, lambda lv, m, v: v.get("restarts[stamp_backwards]") == "1", 10, "a restart"
@@ -203,14 +203,14 @@ def test_stamp_going_backwards_restarts_the_window(estimator):
     assert found[2]["window_fill"] in {f"{n}/100" for n in range(0, 21)}
     n_before = len(twist)
     for k in range(20, 130):
-        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10**9 + k * DT_NS))
+        feeder.send(feeder.sample(k, stamp_ns=START_NS - 10 * 10**9 + k * DT_NS))
         time.sleep(0.001)
     wait_for(lambda: len(twist) > n_before, 10, "estimates after the window refilled")
     restamped = [
         r.msg.header.stamp.sec * 10**9 + r.msg.header.stamp.nanosec for r in twist[n_before:]
     ]
     # After the restart the window first has to hold 100 samples of the new run again.
-    assert min(restamped) >= START_NS - 10**9 + 99 * DT_NS
+    assert min(restamped) >= START_NS - 10 * 10**9 + 99 * DT_NS
     assert child.proc.poll() is None
 
 
@@ -325,3 +325,66 @@ def test_status_keeps_coming_with_use_sim_time_and_no_clock(spawn, probe):
     assert found
     level, message, _ = status_values(status[-1].msg)
     assert level == 1 and "no message yet" in message
+    # ... with stamps that mean something (ROS time stands at 0 without /clock).
+    stamps = [r.msg.header.stamp.sec * 10**9 + r.msg.header.stamp.nanosec for r in status]
+    assert all(s > 0 for s in stamps) and stamps == sorted(stamps)
+
+
+def test_one_late_message_costs_only_itself(estimator):
+    rig = estimator
+    child, feeder, twist, status = rig.child, rig.feeder, rig.twist, rig.status
+    # Step 150 is held back and sent 10 ms late, after step 154.
+    for k in [*range(0, 150), *range(151, 155), 150, *range(155, 300)]:
+        feeder.send(feeder.sample(k))
+        time.sleep(0.001)
+    last = START_NS + 299 * DT_NS
+    wait_for(lambda: twist and stamp_of(twist[-1].msg) == last, 10, "the last estimate")
+
+    def accounted(v: dict[str, str]) -> int:
+        return sum(int(v[k]) for k in ("accepted_samples", "rejected_samples", "dropped_samples"))
+
+    found = wait_status(status, lambda lv, m, v: accounted(v) == 300, 10, "all 300 accounted")
+    values = found[2]
+    assert values["rejected[late_stamp]"] == "1" and values["window_restarts"] == "0"
+    # No blind spot: every step after the window filled has its estimate, except the
+    # late one and any that DDS dropped under this burst (counted as dropped).
+    stamps = {stamp_of(r.msg) for r in twist}
+    expected = {START_NS + k * DT_NS for k in range(99, 300) if k != 150}
+    assert stamps <= expected
+    assert len(expected - stamps) <= int(values["dropped_samples"])
+    assert child.proc.poll() is None
+
+
+def stamp_of(msg) -> int:
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def test_two_publishers_on_an_input_are_named_in_the_status(estimator, ros_domain, request):
+    rig = estimator
+    second = Probe(ros_domain.domain_id, name="second_imu")
+    request.addfinalizer(second.close)
+    second.publisher(topics.IMU, RclpyMessages().Imu, profile_for(topics.IMU))
+    # (Node names follow the endpoints in discovery: wait for both.)
+    found = wait_status(
+        rig.status,
+        lambda lv, m, v: f"2 publishers on {topics.IMU}" in m and "/second_imu" in m,
+        15,
+        "two publishers, named",
+    )
+    assert found[0] == 1 and "/probe" in found[1]
+    assert rig.child.proc.poll() is None
+
+
+def test_an_input_in_another_frame_is_a_warning_and_still_used(estimator):
+    rig = estimator
+    feeder = rig.feeder
+    for k in range(150):
+        msgs = sample_to_messages(feeder.sample(k), feeder.msgs, feeder.sigma)
+        msgs[topics.IMU].header.frame_id = "map"
+        for topic in (topics.TWIST, topics.STEERING, topics.IMU):
+            feeder.pubs[topic].publish(msgs[topic])
+        time.sleep(0.001)
+    found = wait_status(rig.status, lambda lv, m, v: "frame_id 'map'" in m, 10, "frame WARN")
+    assert found[0] == 1 and f"{topics.IMU}: frame_id 'map', expected 'base_link'" in found[1]
+    wait_for(lambda: len(rig.beta) > 0, 10, "estimates from the IMU in another frame")
+    wait_for(lambda: "frame mismatch" in rig.child.output(), 5, "a log line")

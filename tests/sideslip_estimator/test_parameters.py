@@ -62,6 +62,7 @@ STR_NAMES = {
     "vehicle_file",
     "observer_params_file",
     "engine",
+    "frame_id",
 }
 
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from sideslip_estimator.estimator import EstimatorStats
-from sideslip_estimator.status import LEVEL_NAMES, Observation, Status, assess
+from sideslip_estimator.status import LEVEL_NAMES, Counts, Observation, Status, assess
 from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 TOPICS = ("/vehicle/imu", "/vehicle/twist", "/vehicle/steering")
@@ -23,13 +23,11 @@ def _obs(**changes: object) -> Observation:
         silence_timeout_s=0.1,
         window_fill=(100, 100),
         latencies_s=[0.0001, 0.0002, 0.0003],
-        new_rejections=0,
-        new_drops=0,
-        new_resets=0,
-        new_estimates=200,
-        new_below_min_speed=0,
+        new=Counts(estimates=200),
     )
-    return replace(healthy, **changes)  # type: ignore[arg-type]
+    # new_<counter>=n sets that counter of the Counts since the previous status.
+    new = {k.removeprefix("new_"): changes.pop(k) for k in list(changes) if k.startswith("new_")}
+    return replace(healthy, new=replace(healthy.new, **new), **changes)  # type: ignore[arg-type]
 
 
 def _stats(**changes: object) -> EstimatorStats:
@@ -147,3 +145,32 @@ def test_several_warnings_are_joined_in_one_line() -> None:
     status = _assess(_obs(new_drops=1, new_resets=1, new_rejections=1))
     assert status.level == DIAGNOSTIC_WARN
     assert status.message.count("; ") == 2 and "\n" not in status.message
+
+
+def test_two_publishers_on_an_input_are_a_warning_naming_both() -> None:
+    publishers = {"/vehicle/imu": ["/sim_a", "/sim_b"], "/vehicle/twist": ["/sim_a"]}
+    status = _assess(_obs(publishers=publishers))
+    assert status.level == DIAGNOSTIC_WARN
+    assert "2 publishers on /vehicle/imu: /sim_a, /sim_b" in status.message
+    assert "/vehicle/twist" not in status.message
+    assert status.values["publishers[/vehicle/imu]"] == "/sim_a, /sim_b"
+
+
+def test_a_frame_mismatch_is_a_warning() -> None:
+    line = "/vehicle/imu: frame_id 'map', expected 'base_link' (used as if base_link)"
+    status = _assess(_obs(wrong_frames=[line]))
+    assert status.level == DIAGNOSTIC_WARN and line in status.message
+
+
+def test_an_input_rate_off_the_models_is_a_warning_naming_both_rates() -> None:
+    status = _assess(_obs(input_rate_hz=100.0))
+    assert status.level == DIAGNOSTIC_WARN
+    assert "IMU at 100.0 Hz, the model expects 400 Hz" in status.message
+    assert status.values["input_rate_hz"] == "100.0"
+    assert _assess(_obs(input_rate_hz=398.0)).level == DIAGNOSTIC_OK
+
+
+def test_counts_difference_is_what_happened_since_the_previous_status() -> None:
+    before = Counts.of(_stats(dropped=3, rejected=Counter({"late_stamp": 1})))
+    after = Counts.of(_stats(dropped=5, rejected=Counter({"late_stamp": 1, "bad_stamp": 2})))
+    assert after - before == Counts(rejections=2, drops=2)
