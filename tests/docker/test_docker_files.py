@@ -221,9 +221,32 @@ def test_services_share_one_ros_domain_and_the_host_network(compose: dict) -> No
     services = compose["services"].values()
     domains = {s["environment"]["ROS_DOMAIN_ID"] for s in services}
     assert len(domains) == 1, f"services on different ROS domains: {domains}"
-    # Host network and host IPC together: see the note in compose.yaml.
     assert {s.get("network_mode") for s in services} == {"host"}
-    assert {s.get("ipc") for s in services} == {"host"}
+
+
+def test_dds_data_goes_over_udp_so_any_host_user_receives_it(compose: dict) -> None:
+    # Shared memory across containers, or towards a host user of another uid, gives
+    # discovery without data: UDP by default (see the note in compose.yaml).
+    for name, service in compose["services"].items():
+        value = service["environment"]["FASTDDS_BUILTIN_TRANSPORTS"]
+        assert re.fullmatch(r"\$\{FASTDDS_BUILTIN_TRANSPORTS:-UDPv4\}", value), name
+        assert "ipc" not in service, f"{name}: no host IPC needed without shared memory"
+
+
+def test_containers_run_as_a_non_root_user() -> None:
+    runtime = DOCKERFILE.read_text().split("AS runtime", 1)[1]
+    users = re.findall(r"^USER\s+(\S+)", runtime, flags=re.M)
+    assert users and users[-1] not in {"root", "0"}, users
+    assert re.search(r"useradd --uid \"\$\{SIDESLIP_UID\}\"", runtime)
+    assert "ARG SIDESLIP_UID=1000" in runtime
+
+
+def test_the_compose_simulator_loops_until_stopped(compose: dict) -> None:
+    words = command_words(compose["services"]["sim"])
+    i = words.index("loop:=true")
+    assert words[i - 1] == "-p"
+    # SIM_ARGS comes after it, so a user can still turn looping off.
+    assert words.index("${SIM_ARGS:-}") > i
 
 
 @pytest.mark.parametrize("name", sorted(SERVICE_EXECUTABLES))
