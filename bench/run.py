@@ -187,10 +187,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sections",
         nargs="+",
-        choices=["simulator", "ros", "training", "inference"],
+        choices=["simulator", "ros", "training", "inference", "soak"],
         default=["simulator", "ros", "training", "inference"],
-        help="which benchmark sections to run (others keep their previous results)",
+        help="which benchmark sections to run (others keep their previous results); soak "
+        "(sim + default estimator + 2 CPU-bound processes, --soak-seconds) only on request",
     )
+    parser.add_argument("--soak-seconds", type=float, default=600.0)
     parser.add_argument("--ros-seconds", type=float, default=30.0)
     args = parser.parse_args(argv)
     vehicle = load_vehicle("paper_sedan")
@@ -214,6 +216,10 @@ def main(argv: list[str] | None = None) -> int:
         for executor in ("events", "single_threaded"):
             print(f"ros: sim + estimator + listener, {executor} executor ...", flush=True)
             ros[executor] = run_ros(args.ros_seconds, executor)
+        # The default back-end (the shipped model, streaming engine): the target
+        # of p99 < 1 ms from sensor stamp to /sideslip in another process, idle.
+        print("ros: the same with the default pso_lstm back-end ...", flush=True)
+        ros["events_pso_lstm"] = run_ros(args.ros_seconds, "events", backend="pso_lstm")
         results["ros_runtime"] = ros
     if "training" in args.sections:
         results["training"] = bench_training()
@@ -223,7 +229,11 @@ def main(argv: list[str] | None = None) -> int:
         tmp = Path(tempfile.mkdtemp(prefix="sideslip-inference-")) / "inference.json"
         inference_main(["--json", str(tmp)])
         results["inference"] = json.loads(tmp.read_text())
-    for section in ("simulator", "ros_runtime", "training", "inference"):
+    if "soak" in args.sections:
+        from soak import run as run_soak  # imports rclpy: only when asked for
+
+        results["soak"] = run_soak(args.soak_seconds, load=2)
+    for section in ("simulator", "ros_runtime", "training", "inference", "soak"):
         if section in results:
             results[section]["measured"] = {  # type: ignore[index]
                 "date_utc": results["date_utc"],
