@@ -141,6 +141,16 @@ def test_python_dependencies_are_pinned_by_constraints_and_numpy_comes_from_apt(
     assert "python3-numpy" in apt and "python3-yaml" in apt
 
 
+def test_the_ukf_back_end_has_filterpy_and_apts_scipy_in_the_image() -> None:
+    builder, runtime = dockerfile_stages()[0], dockerfile_stages()[-1]
+    runs = " ".join(builder.args_of("RUN"))
+    # Pure Python, pinned, without dependencies: scipy must be apt's (apt's numpy).
+    assert re.search(r"pip install --no-cache-dir --no-deps -c /tmp/pins\.txt filterpy", runs)
+    for stage in (builder, runtime):
+        apt = " ".join(r for r in stage.args_of("RUN") if "apt-get install" in r)
+        assert "python3-scipy" in apt
+
+
 def test_final_stage_has_no_build_tools_and_no_caches() -> None:
     final = dockerfile_stages()[-1]
     for run in final.args_of("RUN"):
