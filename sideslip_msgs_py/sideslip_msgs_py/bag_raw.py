@@ -127,8 +127,8 @@ class RawBag:
         Read from disk on each call, except for a damaged bare .mcap, whose metadata
         record the record-by-record read kept. None when the bag has none.
         """
-        if self.path.is_dir():
-            yaml_path = self.path / "metadata.yaml"
+        yaml_path = self.path / "metadata.yaml"
+        if self.path.is_dir() and yaml_path.is_file():
             return _custom_data_from_yaml(yaml_path.read_text(encoding="utf-8"), yaml_path)
         if self.truncated:
             return self._custom_data
@@ -144,10 +144,13 @@ def open_raw_bag(path: str | Path) -> RawBag:
     order, up to each file's first damaged record; that readable part is held in memory,
     sorted by log time, with ``truncated`` set and ``notes`` saying where it stopped.
 
+    A directory with .mcap files but no metadata.yaml (a recorder killed before it wrote
+    one) is read the same way, with a note naming ``sideslip-record --reindex``.
+
     Raises:
-        NotABagError: nothing there, a directory without metadata.yaml, a file that is
-            not MCAP, or a bag that neither rosbags nor the record-by-record reader can
-            read.
+        NotABagError: nothing there, a directory with neither metadata.yaml nor .mcap
+            files, a file that is not MCAP, or a bag that neither rosbags nor the
+            record-by-record reader can read.
         WrongTopicTypeError: a topic is recorded with two message types.
     """
     path = Path(path)
@@ -155,8 +158,14 @@ def open_raw_bag(path: str | Path) -> RawBag:
         msg = f"{path}: no such bag (expected a rosbag2 directory or an .mcap file)"
         raise NotABagError(msg)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
-        msg = f"{path}: directory has no metadata.yaml, so it is not a rosbag2 bag"
-        raise NotABagError(msg)
+        if not _storage_files(path):
+            msg = f"{path}: directory has no metadata.yaml and no .mcap file: not a bag"
+            raise NotABagError(msg)
+        why = FileNotFoundError(
+            "no metadata.yaml (a recorder stopped before writing it? "
+            f"`sideslip-record --reindex {path}` writes it)"
+        )
+        return _read_records(path, why)
     if path.is_file() and not _starts_with_mcap_magic(path):
         msg = f"{path}: not an MCAP file (bad magic bytes); expected a bag"
         raise NotABagError(msg)

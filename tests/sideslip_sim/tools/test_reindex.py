@@ -135,6 +135,10 @@ def test_a_file_cut_inside_a_chunk_keeps_its_whole_chunks(tmp_path: Path) -> Non
     (cut / "cut.mcap").write_bytes(data[: chunks[1].chunk_start_offset + 100])
     readable = sum(1 for _ in open_raw_bag(cut / "cut.mcap").messages())
     assert 0 < readable < 10_000
+    # Our tools open the directory as it is, and say how to make it whole.
+    raw = open_raw_bag(cut)
+    assert raw.truncated and sum(1 for _ in raw.messages()) == readable
+    assert "--reindex" in raw.notes[0]
 
     result = reindex(cut)
 
