@@ -44,6 +44,9 @@ from .stamps import StampLine
 from .window import SampleWindow
 
 _MAX_BETA_RAD: Final = math.radians(80.0)
+CONTRACT_RATE_HZ: Final = 400.0
+RATE_TOLERANCE: Final = 0.1
+"""A measured IMU rate further than this (relative) from the model's is another rate."""
 
 
 @dataclass(frozen=True)
@@ -54,17 +57,20 @@ class EstimatorParams:
     max_input_age_s: float = 0.05
     max_gap_s: float = 0.1
     min_speed_mps: float = 1.0
-    input_rate_hz: float = 400.0
-    """The model's sample rate: steps missing at this rate are counted as dropped."""
+    input_rate_hz: float = 0.0
+    """Expected IMU rate [Hz]: steps missing at this rate are counted as dropped.
+    0 = the back-end model's rate (:attr:`Backend.sample_period_s`), else 400 Hz."""
     limits: InputLimits = field(default_factory=InputLimits)
 
     def __post_init__(self) -> None:
         if self.window_steps < 1:
             raise ValueError(f"window_steps must be >= 1, got {self.window_steps}")
-        for name in ("max_input_age_s", "max_gap_s", "input_rate_hz"):
+        for name in ("max_input_age_s", "max_gap_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        if not (math.isfinite(self.input_rate_hz) and self.input_rate_hz >= 0.0):
+            raise ValueError(f"input_rate_hz must be finite and >= 0, got {self.input_rate_hz!r}")
         if not (math.isfinite(self.min_speed_mps) and self.min_speed_mps >= 0.0):
             raise ValueError(f"min_speed_mps must be finite and >= 0, got {self.min_speed_mps!r}")
 
@@ -85,6 +91,8 @@ class EstimatorStats:
     last_rejection: str = ""
     future_stamps: int = 0
     """Messages found to carry a stamp ahead of the time line (kept, restamped)."""
+    wrong_rate: int = 0
+    """Samples with a full window but no estimate: the input rate is not the model's."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +119,11 @@ class Estimator:
         self.aligner = Aligner(self.params.max_input_age_s)
         self.stats = EstimatorStats()
         self._max_gap_ns = round(self.params.max_gap_s * NS_PER_S)
-        self.line = StampLine(round(NS_PER_S / self.params.input_rate_hz), self._max_gap_ns)
+        model_period = getattr(backend, "sample_period_s", None)
+        self.model_rate_hz: float | None = None if model_period is None else 1.0 / model_period
+        """The rate the back-end's model needs (None: any rate)."""
+        self.expected_rate_hz = self.params.input_rate_hz or self.model_rate_hz or CONTRACT_RATE_HZ
+        self.line = StampLine(round(NS_PER_S / self.expected_rate_hz), self._max_gap_ns)
         self._last_accepted_ns: int | None = None
         self._held: tuple[str, ImuFields] | None = None  # a jump awaiting the next stamp
 
@@ -222,6 +234,11 @@ class Estimator:
             ) from err
         if not self.window.full:
             return None
+        if self.rate_refused:
+            # A window of the wrong duration: the model's answer would be wrong and look
+            # right. No estimate until the rate is the model's again.
+            self.stats.wrong_rate += 1
+            return None
         v_x = float(row[X_V])
         if v_x < self.params.min_speed_mps:
             # β = atan2(v_y, v_x) is meaningless at walking pace: no output, not a guess.
@@ -246,6 +263,12 @@ class Estimator:
     def input_rate_hz(self) -> float | None:
         """Measured IMU rate [Hz] (None until measured); compare ``params.input_rate_hz``."""
         return self.line.rate_hz
+
+    @property
+    def rate_refused(self) -> bool:
+        """The measured IMU rate is not the back-end model's (no estimates meanwhile)."""
+        rate, model = self.line.rate_hz, self.model_rate_hz
+        return rate is not None and model is not None and abs(rate / model - 1.0) > RATE_TOLERANCE
 
     @property
     def held(self) -> int:

@@ -228,7 +228,8 @@ class EstimatorNode(rclpy.node.Node):
             publishers=publishers,
             wrong_frames=list(self._wrong_frames.values()),
             input_rate_hz=core.input_rate_hz,
-            expected_rate_hz=core.params.input_rate_hz,
+            expected_rate_hz=core.expected_rate_hz,
+            rate_refused=core.rate_refused,
             held=core.held,
             future_stamps=core.stats.future_stamps,
         )

@@ -34,9 +34,11 @@ PARAMETERS = (
     ),
     ParameterSpec(
         "input_rate_hz",
-        400.0,
-        "The model's sample rate [Hz]: IMU steps missing at this rate are counted as "
-        "dropped; a measured rate more than 10 % off turns the status to WARN.",
+        0.0,
+        "Expected IMU rate [Hz]: steps missing at this rate are counted as dropped, and a "
+        "measured rate more than 10 % off turns the status to WARN. 0 = the model's rate "
+        "(pso_lstm: its file's; 400 for the filters). Whatever this says, a pso_lstm model "
+        "fed another rate than its own publishes nothing (status ERROR naming both).",
     ),
     ParameterSpec(
         "frame_id",

@@ -80,6 +80,8 @@ class StampLine:
         self._gaps: deque[_Gap] = deque()
         self._suspect: _Suspect | None = None
         self._intervals: deque[int] = deque(maxlen=_RATE_INTERVALS)
+        self._since_rate = 0
+        self._rate_hz: float | None = None
 
     # --- classification ------------------------------------------------------------------
     def classify(self, stamp_ns: int) -> Kind:
@@ -105,6 +107,9 @@ class StampLine:
         self._recent.append(stamp_ns)
         self._gaps.clear()
         self._suspect = None
+        self._intervals.clear()  # another source or recording may have another rate
+        self._rate_hz = None
+        self._since_rate = 0
 
     def advance(self, stamp_ns: int) -> int:
         """Take a ``next`` stamp; returns the steps counted as dropped before it."""
@@ -120,6 +125,11 @@ class StampLine:
             self._gaps.append(gap)
             self._suspect = _Suspect(last, gap)
         self._intervals.append(interval)
+        self._since_rate += 1
+        if len(self._intervals) >= 4 and (self._rate_hz is None or self._since_rate >= 8):
+            # The median every 8 messages: the rate is read on every sample.
+            self._rate_hz = 1e9 / float(np.median(self._intervals))
+            self._since_rate = 0
         self._accept(stamp_ns)
         return missing
 
@@ -158,6 +168,4 @@ class StampLine:
     def rate_hz(self) -> float | None:
         """Measured message rate [Hz]: 1 / the median of the last intervals (robust to
         a few drops; a slower source shows here). None until measured."""
-        if len(self._intervals) < 4:
-            return None
-        return 1e9 / float(np.median(self._intervals))
+        return self._rate_hz

@@ -65,6 +65,8 @@ class Observation:
     input_rate_hz: float | None = None
     """Measured IMU rate (None until measured)."""
     expected_rate_hz: float = 400.0
+    rate_refused: bool = False
+    """The measured rate is not the back-end model's: no estimates (an error)."""
     held: int = 0
     """IMU messages held: a stamp jump waiting for the next message."""
     future_stamps: int = 0
@@ -88,9 +90,14 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
             warnings.append(f"{len(nodes)} publishers on {topic}: {', '.join(nodes)}")
     warnings.extend(obs.wrong_frames)
     rate = obs.input_rate_hz
-    if rate is not None and abs(rate / obs.expected_rate_hz - 1.0) > 0.1:
+    if obs.rate_refused and rate is not None:
+        errors.append(
+            f"IMU at {rate:.1f} Hz, the model expects {obs.expected_rate_hz:g} Hz: no "
+            "estimate (resample the input, or use a model trained at this rate)"
+        )
+    elif rate is not None and abs(rate / obs.expected_rate_hz - 1.0) > 0.1:
         warnings.append(
-            f"IMU at {rate:.1f} Hz, the model expects {obs.expected_rate_hz:g} Hz "
+            f"IMU at {rate:.1f} Hz, expected {obs.expected_rate_hz:g} Hz "
             "(missing steps are counted as dropped)"
         )
     silent = [t for t, age in obs.input_ages_s.items() if age is None]

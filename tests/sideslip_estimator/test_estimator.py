@@ -589,3 +589,42 @@ def test_every_published_message_is_accepted_rejected_or_dropped_exactly(
     sent += 1
     assert _published(est) == sent
     assert not est.stats.resets
+
+
+# --- the model's rate ------------------------------------------------------------------------
+
+
+class _RateBound:
+    """A real kinematic back-end that declares a model step, as a trained network does."""
+
+    def __init__(self, period_s: float) -> None:
+        self._inner = create_backend("kinematic", {}, WINDOW)
+        self.name, self.model_id = "rate_bound", "kinematic at a fixed step"
+        self.sample_period_s = period_s
+
+    def reset(self) -> None:
+        self._inner.reset()
+
+    def update(self, rows, stamps_ns):  # type: ignore[no-untyped-def]
+        return self._inner.update(rows, stamps_ns)
+
+
+def test_a_model_fed_another_rate_than_its_own_publishes_nothing() -> None:
+    est = Estimator(_RateBound(0.0025), EstimatorParams(window_steps=WINDOW, max_gap_s=1.0))
+    assert est.expected_rate_hz == pytest.approx(400.0)
+    outs = _run(est, range(0, 400, 2))  # 200 Hz into a 400-Hz model
+    assert est.rate_refused and est.input_rate_hz == pytest.approx(200.0)
+    assert all(o is None for o in outs[WINDOW:]) and est.stats.wrong_rate > 0
+    assert est.stats.estimates == 0
+    outs = _run(est, range(400, 600))  # back at 400 Hz: estimates again
+    assert not est.rate_refused and outs[-1] is not None
+
+
+def test_a_rate_free_back_end_runs_at_any_rate_and_counts_against_400_hz() -> None:
+    est = _estimator(max_gap_s=1.0)
+    assert est.model_rate_hz is None and est.expected_rate_hz == 400.0
+    outs = _run(est, range(0, 400, 4))  # 100 Hz
+    assert not est.rate_refused and outs[-1] is not None
+    est = _estimator(max_gap_s=1.0, input_rate_hz=100.0)  # told the source's rate
+    _run(est, range(0, 400, 4))
+    assert est.stats.dropped == 0

@@ -162,10 +162,10 @@ def test_a_frame_mismatch_is_a_warning() -> None:
     assert status.level == DIAGNOSTIC_WARN and line in status.message
 
 
-def test_an_input_rate_off_the_models_is_a_warning_naming_both_rates() -> None:
+def test_an_input_rate_off_the_expected_one_is_a_warning_naming_both_rates() -> None:
     status = _assess(_obs(input_rate_hz=100.0))
     assert status.level == DIAGNOSTIC_WARN
-    assert "IMU at 100.0 Hz, the model expects 400 Hz" in status.message
+    assert "IMU at 100.0 Hz, expected 400 Hz" in status.message
     assert status.values["input_rate_hz"] == "100.0"
     assert _assess(_obs(input_rate_hz=398.0)).level == DIAGNOSTIC_OK
 
@@ -174,3 +174,9 @@ def test_counts_difference_is_what_happened_since_the_previous_status() -> None:
     before = Counts.of(_stats(dropped=3, rejected=Counter({"late_stamp": 1})))
     after = Counts.of(_stats(dropped=5, rejected=Counter({"late_stamp": 1, "bad_stamp": 2})))
     assert after - before == Counts(rejections=2, drops=2)
+
+
+def test_a_model_refusing_the_input_rate_is_an_error_naming_both_rates() -> None:
+    status = _assess(_obs(input_rate_hz=200.0, rate_refused=True, new_estimates=0))
+    assert status.level == DIAGNOSTIC_ERROR
+    assert "IMU at 200.0 Hz, the model expects 400 Hz: no estimate" in status.message

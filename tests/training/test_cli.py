@@ -260,3 +260,35 @@ def test_force_never_replaces_a_folder_that_is_not_a_run_folder(sim_bag_dir, tmp
     assert train_main([*args, *TINY, "--force"]) == 2
     assert "not a sideslip-train run folder" in capsys.readouterr().err
     assert (precious / "thesis.tex").read_text() == "keep"
+
+
+def test_evaluate_resamples_a_bag_at_another_rate_instead_of_scoring_it_wrong(
+    sim_bag_dir, tmp_path, capsys
+):
+    from sideslip_msgs_py.bag import read_bag, write_bag
+    from sideslip_msgs_py.sample import SensorNoiseSigma
+
+    model = tmp_path / "m.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    # The same runs as a 200-Hz recording (every other sample) and as a 20-Hz one.
+    slow, too_slow = tmp_path / "at200", tmp_path / "at20"
+    for i, bag in enumerate(sorted(p for p in sim_bag_dir.iterdir() if p.is_dir())):
+        s = read_bag(bag).samples
+        for out, every in ((slow, 2), (too_slow, 20)):
+            cols = {k: (None if v is None else v[::every]) for k, v in vars(s).items()}
+            meta = {"name": f"r{i}"}
+            write_bag(
+                out / f"r{i}",
+                SampleArrays(**cols),
+                sigma=SensorNoiseSigma.paper(),
+                run_metadata=meta,
+            )
+    capsys.readouterr()
+    assert evaluate_main(["--model", str(model), "--data", str(slow)]) == 0
+    captured = capsys.readouterr()
+    assert "resampled from 200.0 Hz to 400 Hz" in captured.err
+    assert "nan" not in captured.out.lower()
+    assert evaluate_main(["--model", str(model), "--data", str(too_slow)]) == 2
+    err = capsys.readouterr().err
+    assert "20.0 Hz" in err and "400 Hz" in err

@@ -393,3 +393,34 @@ def test_data_digest_is_stable_and_sees_every_sample(
     cols = vars(changed) | {"x_a_mps2": x_a}
     edited = [Run(runs[0].name, runs[0].path, SampleArrays(**cols)), *runs[1:]]
     assert data_digest(edited) != digest
+
+
+# --- the model's rate ------------------------------------------------------------------------
+
+
+def test_bags_at_another_rate_are_resampled_to_the_models_step_and_reported(
+    make_arrays, write_arrays, tmp_path
+) -> None:
+    folder = tmp_path / "bags"
+    write_arrays("at100", make_arrays(400, stamps_ns=np.arange(400) * 10_000_000), folder=folder)
+    write_arrays("at400", make_arrays(1600), folder=folder)
+    runs, report = load_runs(folder, step_s=0.0025)
+    by_name = {r.name: r for r in runs}
+    slow = by_name["at100"].samples
+    assert np.all(np.diff(slow.stamp_ns) == 2_500_000) and len(slow) == 399 * 4 + 1
+    assert "at100: resampled from 100.0 Hz to 400 Hz (linear interpolation)" in str(report)
+    assert "at400: resampled" not in str(report)
+    assert len(by_name["at400"].samples) == 1600
+
+
+def test_a_bag_too_slow_to_resample_is_refused_naming_both_rates(
+    make_arrays, write_arrays, tmp_path
+) -> None:
+    folder = tmp_path / "bags"
+    write_arrays("at20", make_arrays(100, stamps_ns=np.arange(100) * 50_000_000), folder=folder)
+    write_arrays("at400", make_arrays(800), folder=folder)
+    runs, report = load_runs(folder, step_s=0.0025)
+    assert [r.name for r in runs] == ["at400"]
+    assert "at20: ERROR samples at 20.0 Hz" in str(report) and "400 Hz" in str(report)
+    with pytest.raises(DatasetError, match=r"20\.0 Hz"):
+        load_runs(folder / "at20", step_s=0.0025)

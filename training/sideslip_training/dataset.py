@@ -42,6 +42,7 @@ import numpy as np
 
 from sideslip_msgs_py.bag import read_bag
 from sideslip_msgs_py.features import CHANNELS, channel_indices
+from sideslip_msgs_py.resample import RateError, to_step
 from sideslip_msgs_py.sample import SampleArrays
 
 BETA: Final = "beta_rad"
@@ -233,6 +234,7 @@ def load_runs(
     max_gap_s: float = 0.01,
     channels: Sequence[str] = CHANNELS,
     on_bag: Callable[[Path], None] | None = None,
+    step_s: float | None = None,
 ) -> tuple[list[Run], DatasetReport]:
     """Read every bag under ``paths`` into runs, reporting everything not used verbatim.
 
@@ -247,6 +249,10 @@ def load_runs(
             channel); β is always checked when present. Windows containing such samples
             are never produced (:meth:`~.windows.WindowIndex.build`).
         on_bag: called with each bag's path before it is read (e.g. a progress bar).
+        step_s: the model's step [s]: a bag at another rate is resampled to it (low-pass
+            filtered first when downsampling) or, outside 50–1000 Hz, refused naming
+            both rates (:func:`sideslip_msgs_py.resample.to_step`); the report says
+            which. None: bags are used at whatever rate they have.
 
     Returns:
         The runs in bag order (segments in time order), and the report.
@@ -296,6 +302,21 @@ def load_runs(
             continue
         if truthless:
             lines.append(f"{name}: no ground truth; kept (require_truth=False)")
+
+        if step_s is not None:
+            try:
+                resampled = to_step(samples, step_s, max_gap_s=max_gap_s)
+            except RateError as err:
+                refused.append(f"{name}: {err}")
+                lines.append(f"{name}: ERROR {err}; not used")
+                continue
+            samples = resampled.samples
+            if resampled.note:
+                notes.append(resampled.note)
+                lines.append(f"{name}: {resampled.note}")
+            if len(samples) == 0:
+                refused.append(f"{name}: nothing left after resampling")
+                continue
 
         if counts := _nonfinite_counts(samples, channels):
             rows = _nonfinite_rows(samples, channels)

@@ -40,6 +40,9 @@ class Backend(Protocol):
     name: str
     model_id: str
     """Identifies the model (and its parameters) in /sideslip/status."""
+    sample_period_s: float | None
+    """The step [s] the model was trained at, which its inputs must keep; None for
+    back-ends that integrate over the stamps and run at any rate."""
 
     def reset(self) -> None: ...
 

@@ -27,6 +27,7 @@ class KinematicBackend:
     """atan2 of the (optionally averaged) measured velocity."""
 
     name = "kinematic"
+    sample_period_s = None  # any rate: works on the stamps
     parameters = (
         ParameterSpec(
             "smoothing_steps",

@@ -224,6 +224,7 @@ class PsoLstmBackend:
 
         self.meta = meta
         self.dt_s = meta.dt_s
+        self.sample_period_s = meta.dt_s
         """Sample period the model was trained at [s]."""
         self.window_steps = window_steps
         self.threads = threads

@@ -68,6 +68,7 @@ class SingleTrackBackend:
     """Kalman filter on the linear bicycle model (see the module docstring)."""
 
     name = "single_track"
+    sample_period_s = None  # any rate: works on the stamps
     parameters = (
         ParameterSpec(
             "params_file",

@@ -114,6 +114,7 @@ class UkfBackend:
     """Unscented Kalman filter on the Magic Formula single-track model (module docstring)."""
 
     name = "ukf"
+    sample_period_s = None  # any rate: works on the stamps
     parameters = (
         ParameterSpec(
             "params_file",
