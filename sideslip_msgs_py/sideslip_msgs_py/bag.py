@@ -308,7 +308,10 @@ def read_bag(path: str | Path) -> BagContents:
     for topic in topics.SENSOR_TOPICS:
         if not data.get(topic):
             found = sorted(t for t, d in data.items() if d)
-            msg = f"{path}: no messages on sensor topic {topic} (topics with messages: {found})"
+            msg = (
+                f"{path}: no messages on sensor topic {topic} (topics with messages: {found}; "
+                "recorded with other topics? read it through a topic map, --topic-map)"
+            )
             raise MissingTopicError(msg)
 
     typestore = get_typestore(Stores.ROS2_JAZZY)

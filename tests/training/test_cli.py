@@ -292,3 +292,31 @@ def test_evaluate_resamples_a_bag_at_another_rate_instead_of_scoring_it_wrong(
     assert evaluate_main(["--model", str(model), "--data", str(too_slow)]) == 2
     err = capsys.readouterr().err
     assert "20.0 Hz" in err and "400 Hz" in err
+
+
+def test_bags_of_another_stack_train_and_evaluate_through_a_topic_map(tmp_path, capsys):
+    import yaml
+    from foreign_bag import TOPIC_MAP, make_truth, write_foreign_bag
+
+    bags = tmp_path / "car"
+    for i in range(4):  # other topic names and types, 100 Hz, INS velocity east/north
+        write_foreign_bag(bags / f"drive{i}", make_truth(300, seed=i))
+    topic_map = tmp_path / "car.yaml"
+    topic_map.write_text(yaml.safe_dump(TOPIC_MAP))
+    model = tmp_path / "car.safetensors"
+    args = ["--data", str(bags), "--topic-map", str(topic_map), "--model", "lstm"]
+    assert train_main([*args, "--hidden-units", "4", "--out", str(model), *TINY]) == 0
+    # Trained at the model's 400 Hz: the 100-Hz bags were resampled.
+    config = json.loads((tmp_path / "car.run" / "config.json").read_text())
+    assert config["sample_period_s"] == pytest.approx(0.0025)
+    assert load_model(model)[1].dt_s == pytest.approx(0.0025)
+    code = evaluate_main(
+        ["--model", str(model), "--data", str(bags), "--topic-map", str(topic_map)]
+    )
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert f"read through {topic_map}" in captured.err and "LSTM" in captured.out
+    assert "resampled from 100.0 Hz to 400 Hz" in captured.err
+    # Without the map the same bags are not ours: a clear error, exit 2.
+    assert evaluate_main(["--model", str(model), "--data", str(bags)]) == 2
+    assert "--topic-map" in capsys.readouterr().err

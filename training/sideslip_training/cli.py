@@ -25,6 +25,7 @@ import numpy as np
 from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
 from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS, input_set
+from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from . import __version__
@@ -116,6 +117,13 @@ def _train_parser() -> argparse.ArgumentParser:
         "bags outside 50-1000 Hz refused; the report says which",
     )
     p.add_argument("--out", required=True, type=Path, metavar="FILE.safetensors")
+    p.add_argument(
+        "--topic-map",
+        type=Path,
+        metavar="FILE",
+        help="read bags recorded with other topics/types through this map (YAML: topic and "
+        "field of each channel and of the reference β or velocity; docs/topic-maps.md)",
+    )
     p.add_argument("--force", action="store_true", help="replace --out and its run folder")
     p.add_argument("--run-dir", type=Path, help="run folder (default: OUT.run)")
     p.add_argument("--resume", action="store_true", help="continue the PSO in the run folder")
@@ -219,11 +227,13 @@ def _check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
 
 
 def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, log):
-    runs, report = load_runs(args.data, channels=spec.channels, step_s=spec.dt_s)
+    topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
+    load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
+    runs, report = load_runs(args.data, **load)
     log(str(report))
     if args.val:
         train_runs = runs
-        val_runs, val_report = load_runs(args.val, channels=spec.channels, step_s=spec.dt_s)
+        val_runs, val_report = load_runs(args.val, **load)
         log(f"validation: {val_report}")
         shared = {r.path for r in train_runs} & {r.path for r in val_runs}
         if shared:
@@ -575,6 +585,13 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", nargs="+", required=True, type=Path, metavar="FILE")
     p.add_argument("--data", nargs="+", required=True, metavar="DIR")
     p.add_argument("--out", type=Path, help="report folder: table.md, table.csv, figures")
+    p.add_argument(
+        "--topic-map",
+        type=Path,
+        metavar="FILE",
+        help="read bags recorded with other topics/types through this map (YAML: topic and "
+        "field of each channel and of the reference β or velocity; docs/topic-maps.md)",
+    )
     p.add_argument("--force", action="store_true", help="write into an existing --out")
     p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
     p.add_argument("--title", default="", help="heading of the markdown table")
@@ -636,7 +653,8 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             raise CliError(f"models run at different rates ({rates}): score them separately")
         # Bags at another rate are resampled to the models' step (or refused), never
         # scored at the wrong rate; the report printed below says which.
-        runs, report = load_runs(args.data, step_s=steps.pop())
+        topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
+        runs, report = load_runs(args.data, step_s=steps.pop(), topic_map=topic_map)
         print(str(report), file=sys.stderr)
         window = next(iter(windows))
         short = [r.name for r in runs if len(r.samples) < window]
@@ -645,7 +663,7 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             runs = [r for r in runs if len(r.samples) >= window]
         if not runs:
             raise CliError(f"no run of {args.data} holds a full window of {window} samples")
-    except (CliError, ArtifactError, DatasetError, OSError) as err:
+    except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:

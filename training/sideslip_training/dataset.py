@@ -40,10 +40,11 @@ from typing import Any, Final
 
 import numpy as np
 
-from sideslip_msgs_py.bag import read_bag
+from sideslip_msgs_py.bag import BagContents, read_bag
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.resample import RateError, to_step
 from sideslip_msgs_py.sample import SampleArrays
+from sideslip_msgs_py.topic_map import TopicMap, read_mapped_bag
 
 BETA: Final = "beta_rad"
 """Name under which the target β [rad] appears in reports and non-finite counts."""
@@ -227,6 +228,12 @@ def _nonfinite_rows(samples: SampleArrays, channels: Sequence[str]) -> int:
     return int(np.count_nonzero(bad))
 
 
+def _read_mapped(path: Path, topic_map: TopicMap) -> BagContents:
+    mapped = read_mapped_bag(path, topic_map)
+    notes = (f"read through {topic_map.source}", *mapped.notes)
+    return BagContents(path, mapped.samples, {}, {}, mapped.truncated, notes)
+
+
 def load_runs(
     paths: Sequence[str | Path],
     *,
@@ -235,6 +242,7 @@ def load_runs(
     channels: Sequence[str] = CHANNELS,
     on_bag: Callable[[Path], None] | None = None,
     step_s: float | None = None,
+    topic_map: TopicMap | None = None,
 ) -> tuple[list[Run], DatasetReport]:
     """Read every bag under ``paths`` into runs, reporting everything not used verbatim.
 
@@ -253,6 +261,8 @@ def load_runs(
             filtered first when downsampling) or, outside 50–1000 Hz, refused naming
             both rates (:func:`sideslip_msgs_py.resample.to_step`); the report says
             which. None: bags are used at whatever rate they have.
+        topic_map: read every bag through this map (bags recorded by another stack,
+            :mod:`sideslip_msgs_py.topic_map`) instead of the contract's topics.
 
     Returns:
         The runs in bag order (segments in time order), and the report.
@@ -277,7 +287,7 @@ def load_runs(
         if on_bag is not None:
             on_bag(path)
         try:
-            contents = read_bag(path)
+            contents = read_bag(path) if topic_map is None else _read_mapped(path, topic_map)
         except Exception as err:
             # One damaged bag must not abort the others; the type and message are reported
             # and load_runs raises when nothing usable is left. (read_bag raises BagError
