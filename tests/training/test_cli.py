@@ -178,7 +178,7 @@ def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(
     assert "LSTM: 104" in table
     results = json.loads((out / "metrics.json").read_text())["results"]
     assert all(math.isfinite(r["mae"]) for r in results)
-    assert {r["excluded"] for r in results} == {5, 24, 104}
+    assert {r["excluded"] for r in results} == {0, 5, 24, 104}  # β = 0 leaves out none
 
 
 def test_resume_refuses_another_run_s_data(
@@ -320,3 +320,26 @@ def test_bags_of_another_stack_train_and_evaluate_through_a_topic_map(tmp_path, 
     # Without the map the same bags are not ours: a clear error, exit 2.
     assert evaluate_main(["--model", str(model), "--data", str(bags)]) == 2
     assert "--topic-map" in capsys.readouterr().err
+
+
+def test_evaluate_without_a_model_scores_the_baselines_and_filters_with_a_pooled_row(
+    sim_bag_dir, tmp_path, capsys
+):
+    out = tmp_path / "report"
+    args = ["--data", str(sim_bag_dir), "--out", str(out), "--ukf-params", "paper_sedan"]
+    assert evaluate_main([*args, "--single-track-params", "paper_sedan"]) == 0
+    table = capsys.readouterr().out
+    for row in ("| β = 0 |", "| Kinematic (raw) |", "| Single-track KF |", "| UKF |"):
+        assert row in table
+    assert "| pooled | UKF |" in table and "| mean | UKF |" in table
+    summary = json.loads((out / "metrics.json").read_text())
+    pooled = {r["estimator"]: r for r in summary["pooled"]}
+    per_bag = [r for r in summary["results"] if r["estimator"] == "β = 0"]
+    # Pooled = over all samples: the sample-weighted mean of the per-bag MAEs.
+    weighted = sum(r["mae"] * r["n"] for r in per_bag) / sum(r["n"] for r in per_bag)
+    assert pooled["β = 0"]["mae"] == pytest.approx(weighted)
+    assert pooled["β = 0"]["n"] == sum(r["n"] for r in per_bag)
+    # The sim's car is paper_sedan: its own UKF beats answering β = 0.
+    assert pooled["UKF"]["mae"] < pooled["β = 0"]["mae"]
+    assert evaluate_main(["--data", str(sim_bag_dir), "--ukf-params", "no_such_car"]) == 2
+    assert "UKF" in capsys.readouterr().err

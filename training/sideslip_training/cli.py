@@ -577,12 +577,15 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sideslip-evaluate",
         description=(
-            "Score exported models (and the kinematic baseline atan2(Y_v, X_v), raw and "
-            "smoothed) on bags with ground truth: MAE, ME, RMSE, R² in degrees per bag "
-            "(scenario) in the paper's Table 5/6 layout, β traces and error PDFs."
+            "Score exported models beside the baselines (β = 0, the kinematic atan2(Y_v, "
+            "X_v) raw and smoothed, and with --single-track-params / --ukf-params the "
+            "physics filters) on bags with ground truth: MAE, ME, RMSE, R² in degrees per "
+            "bag (scenario) in the paper's Table 5/6 layout, the mean over bags and the "
+            "pooled figure over all samples, β traces and error PDFs. Without --model: "
+            "the baselines only."
         ),
     )
-    p.add_argument("--model", nargs="+", required=True, type=Path, metavar="FILE")
+    p.add_argument("--model", nargs="*", default=[], type=Path, metavar="FILE")
     p.add_argument("--data", nargs="+", required=True, metavar="DIR")
     p.add_argument("--out", type=Path, help="report folder: table.md, table.csv, figures")
     p.add_argument(
@@ -608,15 +611,35 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         help="the car's ukf params file for bags that record none, for models that read "
         "the UKF observer",
     )
+    p.add_argument(
+        "--single-track-params",
+        metavar="FILE",
+        help="score the single-track Kalman filter with these parameters (a shipped name or "
+        "a YAML from python -m sideslip_sim.single_track VEHICLE)",
+    )
+    p.add_argument(
+        "--ukf-params",
+        metavar="FILE",
+        help="score the UKF with these parameters (a shipped name or a YAML from python -m "
+        "sideslip_sim.ukf_params VEHICLE)",
+    )
+    p.add_argument(
+        "--window-steps",
+        type=int,
+        default=WINDOW_STEPS,
+        help="without --model: the window whose first samples are not scored (default 100)",
+    )
     return p
 
 
 def evaluate_main(argv: Sequence[str] | None = None) -> int:
     from .evaluate import (
+        FilterError,
         evaluate_runs,
         model_label,
         plot_error_pdfs,
         plot_traces,
+        pooled,
         table_csv,
         table_markdown,
     )
@@ -644,10 +667,12 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
                 (f"{n} ({tag})", net, meta)
                 for (n, net, meta), tag in zip(models, tags, strict=True)
             ]
-        windows = {meta.window_steps for _, _, meta in models}
+        windows = {meta.window_steps for _, _, meta in models} or {args.window_steps}
         if len(windows) != 1:
             raise CliError(f"models have different window lengths: {sorted(windows)}")
-        steps = {meta.dt_s for _, _, meta in models}
+        if min(windows) < 1:
+            raise CliError(f"--window-steps must be >= 1, got {args.window_steps}")
+        steps = {meta.dt_s for _, _, meta in models} or {DT_S}
         if len(steps) != 1:
             rates = ", ".join(f"{1 / s:g} Hz" for s in sorted(steps))
             raise CliError(f"models run at different rates ({rates}): score them separately")
@@ -666,6 +691,14 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
     except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    filters = {
+        name: params
+        for name, params in (
+            ("single_track", args.single_track_params),
+            ("ukf", args.ukf_params),
+        )
+        if params
+    }
     try:
         traces = evaluate_runs(
             runs,
@@ -674,8 +707,9 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             smoothing_steps=args.smoothing,
             vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
             observer_params_file=str(args.observer_params) if args.observer_params else None,
+            filters=filters,
         )
-    except (DatasetError, VehicleDescriptionError) as err:
+    except (DatasetError, VehicleDescriptionError, FilterError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     md = table_markdown(traces, args.title)
@@ -686,22 +720,23 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
         (args.out / "table.csv").write_text(table_csv(traces))
         plot_traces(traces, args.out)
         plot_error_pdfs(traces, args.out)
+
+        def strict(m) -> dict:  # strict JSON: an undefined metric (R² of a straight) is null
+            return {
+                k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in asdict(m).items()
+            }
+
         summary = {
             "models": [str(p) for p in args.model],
             "data": args.data,
             "smoothing_steps": args.smoothing,
+            "filters": filters,
             "results": [
-                {
-                    "scenario": t.scenario,
-                    "estimator": t.estimator,
-                    # Strict JSON: an undefined metric (R² of straight driving) is null.
-                    **{
-                        k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                        for k, v in asdict(t.metrics).items()
-                    },
-                }
+                {"scenario": t.scenario, "estimator": t.estimator, **strict(t.metrics)}
                 for t in traces
             ],
+            "pooled": [{"estimator": n, **strict(m)} for n, m in pooled(traces).items()],
         }
         (args.out / "metrics.json").write_text(
             json.dumps(summary, indent=2, allow_nan=False) + "\n"

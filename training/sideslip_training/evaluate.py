@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -156,6 +156,29 @@ def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:
     return beta[window_steps - 1 :]
 
 
+class FilterError(ValueError):
+    """A physics filter that cannot be built from the given parameters."""
+
+
+FILTER_LABELS = {"single_track": "Single-track KF", "ukf": "UKF"}
+
+
+def physics_filter(run: Run, backend: str, params_file: str, window_steps: int) -> FloatArray:
+    """β̂ [rad] of the estimator's ``backend`` (``single_track`` or ``ukf``, with
+    ``params_file``) fed the run through the estimator core as the node would, for
+    samples[window_steps-1:] (NaN where it gives none)."""
+    from sideslip_estimator.backends import BackendError, create_backend
+    from sideslip_estimator.estimator import Estimator, EstimatorParams
+    from sideslip_estimator.replay import replay, replay_columns
+
+    try:
+        backend_ = create_backend(backend, {"params_file": params_file}, window_steps)
+    except (BackendError, ImportError) as err:
+        raise FilterError(f"{FILTER_LABELS[backend]}: {err}") from None
+    est = Estimator(backend_, EstimatorParams(window_steps=window_steps))
+    return replay(est, replay_columns(run.samples)).beta_rad[window_steps - 1 :]
+
+
 def evaluate_runs(
     runs: Sequence[Run],
     models: Sequence[tuple[str, SideslipNet, ModelMetadata]],
@@ -165,8 +188,10 @@ def evaluate_runs(
     dt_s: float = 0.0025,
     vehicle: VehicleDescription | None = None,
     observer_params_file: str | None = None,
+    filters: Mapping[str, str] | None = None,
 ) -> list[Trace]:
-    """Traces of every estimator on every run: baselines first, then the models
+    """Traces of every estimator on every run: baselines first (β = 0, kinematic raw and
+    smoothed, then the physics ``filters``: back-end name → params file), then the models
     (``vehicle``, ``observer_params_file``: the car of runs whose bags record none, for
     models that read it; see :func:`predict_run`)."""
     traces = []
@@ -174,12 +199,17 @@ def evaluate_runs(
         ref = run.samples.beta_rad()[window_steps - 1 :]
         t = np.arange(ref.size) * dt_s + (window_steps - 1) * dt_s
         estimators = [
+            ("β = 0", np.zeros(ref.size)),
             ("Kinematic (raw)", kinematic(run, 1, window_steps)),
             (
                 f"Kinematic ({smoothing_steps}-step mean)",
                 kinematic(run, smoothing_steps, window_steps),
             ),
         ]
+        for backend, params_file in (filters or {}).items():
+            estimators.append(
+                (FILTER_LABELS[backend], physics_filter(run, backend, params_file, window_steps))
+            )
         for name, model, meta in models:
             if meta.window_steps != window_steps:
                 raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
@@ -229,6 +259,15 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
             f"| mean | {name} | {_mean(ms, 'mae', '.3f')} | {_mean(ms, 'me', '+.3f')} | "
             f"{_mean(ms, 'rmse', '.3f')} | {_mean(ms, 'r2', '.3f')} |\n"
         )
+    for name, m in pooled(traces).items():
+        out.write(
+            f"| pooled | {name} | {_num(m.mae, '.3f')} | {_num(m.me, '+.3f')} | "
+            f"{_num(m.rmse, '.3f')} | {_num(m.r2, '.3f')} |\n"
+        )
+    out.write(
+        "\n*mean*: the average of the per-bag figures (each bag counts once); *pooled*: "
+        "over all samples of all bags (each sample counts once).\n"
+    )
     excluded = {name: 0 for _, name, _ in rows}
     for _, name, m in rows:
         excluded[name] += m.excluded
@@ -239,6 +278,19 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
             f"speed or a non-finite sample in the bag): {'; '.join(notes)}.\n"
         )
     return out.getvalue()
+
+
+def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:
+    """Per estimator, the metrics over the samples of every run together (sample-
+    weighted: a 5-s straight stretch weighs as little as its samples)."""
+    out = {}
+    for name in dict.fromkeys(t.estimator for t in traces):
+        mine = [t for t in traces if t.estimator == name]
+        out[name] = metrics_deg(
+            np.concatenate([t.estimate_rad for t in mine]),
+            np.concatenate([t.reference_rad for t in mine]),
+        )
+    return out
 
 
 def _mean(ms: Sequence[Metrics], field: str, spec: str) -> str:
@@ -254,7 +306,8 @@ def table_csv(traces: Sequence[Trace]) -> str:
     writer.writerow(
         ["scenario", "model", "mae_deg", "me_deg", "rmse_deg", "r2", "samples", "excluded"]
     )
-    for scen, name, m in _rows(traces):
+    rows = [*_rows(traces), *(("pooled", n, m) for n, m in pooled(traces).items())]
+    for scen, name, m in rows:
         writer.writerow(
             [scen, name] + [_num(x, ".6f") for x in (m.mae, m.me, m.rmse, m.r2)] + [m.n, m.excluded]
         )
