@@ -231,15 +231,29 @@ def test_bags_shorter_than_a_window_are_refused(make_arrays, write_arrays, tmp_p
     assert not (tmp_path / "m.run").exists()
 
 
-def test_bags_at_another_rate_are_refused(make_arrays, write_arrays, tmp_path, capsys):
+def test_bags_at_another_rate_are_resampled_to_the_models_rate_or_refused(
+    make_arrays, write_arrays, tmp_path, capsys
+):
     for i in range(3):
         write_arrays(f"r400_{i}", make_arrays(800, seed=i), folder=tmp_path / "bags")
     stamps = np.arange(800, dtype=np.int64) * 10_000_000  # 100 Hz
     write_arrays("r100", make_arrays(800, seed=9, stamps_ns=stamps), folder=tmp_path / "bags")
+    stamps = np.arange(100, dtype=np.int64) * 50_000_000  # 20 Hz: too slow to resample
+    write_arrays("r20", make_arrays(100, seed=8, stamps_ns=stamps), folder=tmp_path / "bags")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "bags"), "--model", "lstm", "--out", str(out), *TINY]
-    assert train_main([*args, "--hidden-units", "4"]) == 2
-    assert "r100 (10.00 ms)" in capsys.readouterr().err
+    assert train_main([*args, "--hidden-units", "4"]) == 0
+    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    assert config["sample_period_s"] == pytest.approx(0.0025)
+    bags = {b.split("#")[0] for b in config["train_bags"] + config["val_bags"]}
+    assert bags == {"r400_0", "r400_1", "r400_2", "r100"}  # r20 refused
+    # At a rate of its own the model is trained at that rate.
+    out50 = tmp_path / "m50.safetensors"
+    args[args.index(str(out))] = str(out50)
+    assert train_main([*args, "--hidden-units", "4", "--rate-hz", "100"]) == 0
+    assert load_model(out50)[1].dt_s == pytest.approx(0.01)
+    assert train_main([*args, "--hidden-units", "4", "--rate-hz", "5000", "--force"]) == 2
+    assert "--rate-hz must be within 50-1000 Hz" in capsys.readouterr().err
 
 
 def test_force_never_replaces_a_folder_that_is_not_a_run_folder(sim_bag_dir, tmp_path, capsys):
