@@ -357,3 +357,51 @@ def test_evaluate_without_a_model_scores_the_baselines_and_filters_with_a_pooled
     assert pooled["UKF"]["mae"] < pooled["β = 0"]["mae"]
     assert evaluate_main(["--data", str(sim_bag_dir), "--ukf-params", "no_such_car"]) == 2
     assert "UKF" in capsys.readouterr().err
+
+
+def test_one_long_recording_trains_on_its_start_and_is_tested_on_its_end(
+    make_arrays, write_arrays, tmp_path, capsys
+):
+    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")  # one 10-s bag
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    assert train_main([*args, "--test-fraction", "0.3", "--out", str(out), *TINY]) == 0
+    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    assert config["split"] == "time"
+    assert config["train_bags"] == ["drive"]
+    assert config["val_bags"] == ["drive@val"] and config["test_bags"] == ["drive@test"]
+    test = json.loads((tmp_path / "m.run" / "metrics.json").read_text())["test"]
+    assert set(test) == {"LSTM", "β = 0", "Kinematic (raw)", "Kinematic (20-step mean)"}
+    # 30 % of 4000 samples, less the first window of the test part.
+    assert test["LSTM"]["samples"] == 1200 - 99 and math.isfinite(test["LSTM"]["mae_deg"])
+
+
+def test_the_window_in_seconds_keeps_its_horizon_at_another_rate(
+    make_arrays, write_arrays, tmp_path
+):
+    for i in range(3):
+        write_arrays(f"r{i}", make_arrays(800, seed=i), folder=tmp_path / "bags")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "bags"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--rate-hz", "200", "--window-s", "0.25", "--out", str(out), *TINY]
+    assert train_main(args) == 0
+    meta = load_model(out)[1]
+    assert meta.window_steps == 50 and meta.dt_s == pytest.approx(0.005)
+
+
+def test_a_model_still_improving_at_its_last_epoch_is_warned_about(sim_bag_dir, tmp_path, capsys):
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "4", *TINY]
+    args[args.index("--max-epochs") + 1] = "1"
+    assert train_main([*args, "--out", str(out)]) == 0
+    err = capsys.readouterr().err  # said even with --quiet
+    assert "warning: the best epoch was the last (1 of 1)" in err and "--max-epochs" in err
+    metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
+    assert metrics["still_improving"] is True
+
+
+def test_test_bags_shared_with_the_training_data_are_refused(sim_bag_dir, tmp_path, capsys):
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(sim_bag_dir), "--test", str(sim_bag_dir / "dlc_70")]
+    assert train_main([*args, "--model", "lstm", "--out", str(out), *TINY]) == 2
+    assert "--test shares 1 bag(s) with --data" in capsys.readouterr().err

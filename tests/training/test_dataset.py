@@ -424,3 +424,29 @@ def test_a_bag_too_slow_to_resample_is_refused_naming_both_rates(
     assert "at20: ERROR samples at 20.0 Hz" in str(report) and "400 Hz" in str(report)
     with pytest.raises(DatasetError, match=r"20\.0 Hz"):
         load_runs(folder / "at20", step_s=0.0025)
+
+
+def test_split_in_time_takes_each_bags_last_part_and_no_window_spans_the_cut(
+    make_arrays, write_arrays, tmp_path
+) -> None:
+    from sideslip_training.dataset import split_in_time
+
+    stamps = np.concatenate([np.arange(600), 1000 + np.arange(400)]) * 2_500_000  # a gap
+    write_arrays("long", make_arrays(1000, stamps_ns=stamps), folder=tmp_path / "b")
+    write_arrays("other", make_arrays(500, seed=1), folder=tmp_path / "b")
+    runs, _ = load_runs(tmp_path / "b")
+    assert [r.name for r in runs] == ["long#0", "long#1", "other"]
+    head, tail = split_in_time(runs, 0.3, "test")
+    by_bag = {}
+    for r in head + tail:
+        by_bag.setdefault(r.bag, []).append(r)
+    assert sum(len(r) for r in tail if r.bag == "long") == 300
+    assert sum(len(r) for r in tail if r.bag == "other") == 150
+    for bag, mine in by_bag.items():
+        last_head = max(int(r.samples.stamp_ns[-1]) for r in mine if r in head)
+        first_tail = min(int(r.samples.stamp_ns[0]) for r in mine if r in tail)
+        assert last_head < first_tail, bag  # the tail is later in time
+    assert all(r.name.endswith("@test") for r in tail)
+    assert sum(len(r) for r in head + tail) == 1500  # nothing lost or doubled
+    with pytest.raises(DatasetError, match="too few"):
+        split_in_time([r for r in runs if r.name == "other"][:1], 0.0001, "x")

@@ -29,8 +29,8 @@ from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from . import __version__
-from .config import DT_S, WINDOW_STEPS, TrainProfile, profile
-from .dataset import DatasetError, Run, data_digest, load_runs, split_runs
+from .config import DT_S, PROFILES, WINDOW_S, WINDOW_STEPS, TrainProfile, profile
+from .dataset import DatasetError, Run, data_digest, load_runs, split_in_time, split_runs
 from .export import export_model, load_model
 from .inputs import InputSpec
 from .normalize import Normalizer
@@ -57,11 +57,22 @@ def _train_parser() -> argparse.ArgumentParser:
             "file that the estimator node's pso_lstm back-end loads."
         ),
         epilog=(
-            "Bags are split into training and validation by bag (never by window); the "
-            "z-score statistics come from the training bags only. The run folder (default: "
-            "OUT without suffix + '.run') holds config.json, history.json, metrics.json, "
-            "the PSO history and state (pso_history.json, pso_state.json), plots and each "
-            "particle's model; --resume continues an interrupted PSO from it."
+            "Bags are split into training, validation (and, with --test-fraction, test) by "
+            "bag, or for one long recording in time (--split; never by window); the z-score "
+            "statistics come from the training part only. The run folder (default: OUT "
+            "without suffix + '.run') holds config.json, history.json, metrics.json (with "
+            "the test part's figures), the PSO history and state (pso_history.json, "
+            "pso_state.json), plots and each particle's model; --resume continues an "
+            "interrupted PSO from it. Profiles: "
+            + "; ".join(
+                f"{p.name}: {p.max_epochs} epochs, patience {p.patience}, batch "
+                f"{p.batch_size}, stride {p.stride}, {p.default_hidden_units} units and "
+                f"learning rate {p.default_learning_rate:g} without PSO, validation "
+                f"{p.val_fraction:g}, PSO {p.pso.swarm_size} particles x "
+                f"{p.pso.iterations} iterations"
+                for p in PROFILES.values()
+            )
+            + " (each can be overridden by its option)."
         ),
     )
     p.add_argument(
@@ -74,6 +85,38 @@ def _train_parser() -> argparse.ArgumentParser:
         help="validation bags (e.g. other cars than --data's, so that selection measures "
         "generalisation); default: a fraction of --data's bags",
     )
+    p.add_argument(
+        "--test",
+        nargs="+",
+        metavar="DIR",
+        help="test bags, scored once after training (model and baselines, in metrics.json)",
+    )
+    p.add_argument(
+        "--split",
+        choices=["auto", "bag", "time"],
+        default="auto",
+        help="how --data is split: by bag (whole bags to each side), or in time (the last "
+        "fractions of every bag: for one long recording); auto: by bag from 3 bags on",
+    )
+    p.add_argument(
+        "--val-fraction",
+        type=float,
+        help="share of --data for validation (default: the profile's, 0.2)",
+    )
+    p.add_argument(
+        "--test-fraction",
+        type=float,
+        default=0.0,
+        help="share of --data held out as test (in time: each bag's last part), scored "
+        "once after training",
+    )
+    p.add_argument(
+        "--window-s",
+        type=float,
+        help="window length in seconds (default 0.25, the paper's): the same horizon at "
+        "every --rate-hz",
+    )
+    p.add_argument("--window-steps", type=int, help="window length in samples instead")
     p.add_argument("--model", choices=["lstm", "bilstm"], required=True)
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
     p.add_argument(
@@ -139,6 +182,8 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--stride", type=int, help="override the profile's window stride [samples]")
     p.add_argument("--patience", type=int, help="override the profile's early-stopping patience")
     p.add_argument("--batch-size", type=int, help="override the profile's batch size")
+    p.add_argument("--swarm-size", type=int, help="override the profile's PSO swarm size")
+    p.add_argument("--iterations", type=int, help="override the profile's PSO iterations")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -226,21 +271,51 @@ def _check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
                 raise CliError(f"feature {name} is missing from bag {run.path} (no finite value)")
 
 
-def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, log):
+def _split_mode(args: argparse.Namespace, runs: Sequence[Run]) -> str:
+    """``bag`` or ``time``: ``auto`` takes bags apart when there are 3 or more."""
+    if args.split != "auto":
+        return str(args.split)
+    return "bag" if len({r.bag for r in runs}) >= 3 else "time"
+
+
+def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, window: int, log):
+    """Runs for training, validation and test (the last may be empty), the statistics
+    and the window indices. Fractions are of --data: test first, then validation."""
     topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
     load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
     runs, report = load_runs(args.data, **load)
     log(str(report))
+    mode = _split_mode(args, runs)
+    val_fraction = prof.val_fraction if args.val_fraction is None else args.val_fraction
+    test_runs: list[Run] = []
+    if args.test:
+        test_runs, test_report = load_runs(args.test, **load)
+        log(f"test: {test_report}")
+    elif args.test_fraction:
+        if mode == "time":
+            runs, test_runs = split_in_time(runs, args.test_fraction, "test")
+        else:
+            runs, test_runs = split_runs(runs, args.test_fraction, args.seed + 1)
+        val_fraction = val_fraction / (1.0 - args.test_fraction)
     if args.val:
         train_runs = runs
         val_runs, val_report = load_runs(args.val, **load)
         log(f"validation: {val_report}")
-        shared = {r.path for r in train_runs} & {r.path for r in val_runs}
-        if shared:
-            raise CliError(f"--val shares {len(shared)} bag(s) with --data, e.g. {min(shared)}")
-        runs = [*train_runs, *val_runs]
+    elif mode == "time":
+        train_runs, val_runs = split_in_time(runs, val_fraction, "val")
     else:
-        train_runs, val_runs = split_runs(runs, prof.val_fraction, args.seed)
+        train_runs, val_runs = split_runs(runs, val_fraction, args.seed)
+    checks = [(train_runs, val_runs, "--val")] if args.val else []
+    checks += [([*train_runs, *val_runs], test_runs, "--test")] if args.test else []
+    for ours, other, flag in checks:
+        shared = {r.path for r in ours} & {r.path for r in other}
+        if shared:
+            raise CliError(f"{flag} shares {len(shared)} bag(s) with --data, e.g. {min(shared)}")
+    log(
+        f"split by {mode}: {len(train_runs)} training, {len(val_runs)} validation, "
+        f"{len(test_runs)} test run(s)"
+    )
+    runs = [*train_runs, *val_runs]
     _check_features(runs, spec.channels)
     if spec.needs_observer:
         from . import observer
@@ -254,19 +329,19 @@ def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, log):
             jobs=args.workers,
             progress=not args.quiet,
         )
-    normalizer = Normalizer.fit(train_runs, spec, WINDOW_STEPS)
-    train = WindowIndex.build(train_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
-    val = WindowIndex.build(val_runs, spec, normalizer, WINDOW_STEPS, prof.stride)
+    normalizer = Normalizer.fit(train_runs, spec, window)
+    train = WindowIndex.build(train_runs, spec, normalizer, window, prof.stride)
+    val = WindowIndex.build(val_runs, spec, normalizer, window, prof.stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
         raise CliError(
-            f"no windows of {WINDOW_STEPS} samples: {len(train.ends)} for training, "
+            f"no windows of {window} samples: {len(train.ends)} for training, "
             f"{len(val.ends)} for validation (bags too short?)"
         )
     log(
-        f"{len(train_runs)} training bag(s), {len(train.ends)} windows; "
-        f"{len(val_runs)} validation bag(s), {len(val.ends)} windows (stride {prof.stride})"
+        f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
+        f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {prof.stride})"
     )
-    return runs, train_runs, val_runs, normalizer, train, val
+    return runs, train_runs, val_runs, test_runs, normalizer, train, val
 
 
 def sample_period_s(runs: Sequence[Run]) -> float:
@@ -306,6 +381,43 @@ def _val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) 
     }
 
 
+def _window_steps(args: argparse.Namespace, step_s: float) -> int:
+    """The window in samples: --window-steps, or --window-s at the model's rate (the
+    horizon in seconds stays the same whatever the rate)."""
+    if args.window_steps is not None:
+        if args.window_steps < 2:
+            raise CliError(f"--window-steps must be >= 2, got {args.window_steps}")
+        return int(args.window_steps)
+    window_s = WINDOW_S if args.window_s is None else args.window_s
+    steps = round(window_s / step_s)
+    if not (math.isfinite(window_s) and steps >= 2):
+        raise CliError(f"--window-s {window_s:g} s is under two samples at {1 / step_s:g} Hz")
+    return steps
+
+
+def _test_metrics(model_path: Path, runs: Sequence[Run], log) -> dict[str, dict[str, float]]:
+    """The exported model and the baselines on the test runs, pooled over their samples."""
+    from .evaluate import evaluate_runs, model_label, pooled
+
+    net, meta = load_model(model_path)
+    traces = evaluate_runs(
+        runs,
+        [(model_label(meta), net, meta)],
+        window_steps=meta.window_steps,
+        dt_s=meta.dt_s,
+    )
+    out = {
+        name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}
+        for name, m in pooled(traces).items()
+    }
+    log(
+        "test (pooled over "
+        + f"{len(runs)} run(s)): "
+        + "; ".join(f"{n} MAE {v['mae_deg']:.4f} deg" for n, v in out.items())
+    )
+    return out
+
+
 def train_main(argv: Sequence[str] | None = None) -> int:
     args = _train_parser().parse_args(argv)
     log = (lambda *_: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
@@ -319,6 +431,18 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                     flag = name.replace("_", "-")
                     raise CliError(f"{name} must be >= 1 (--{flag}), got {value}")
                 prof = replace(prof, **{name: value})
+        for name in ("swarm_size", "iterations"):
+            value = getattr(args, name)
+            if value is not None:
+                if value < 1:
+                    raise CliError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+                prof = replace(prof, pso=replace(prof.pso, **{name: value}))
+        for name in ("val_fraction", "test_fraction"):
+            value = getattr(args, name)
+            if value is not None and not 0.0 <= value < 1.0:
+                raise CliError(f"--{name.replace('_', '-')} must be in [0, 1), got {value}")
+        if (args.val_fraction or 0.0) + args.test_fraction >= 1.0:
+            raise CliError("--val-fraction + --test-fraction must leave data to train on")
         features = input_set(args.features)
         vehicle = VehicleDescription.load(args.vehicle) if args.vehicle else None
         if args.workers < 1:
@@ -347,8 +471,11 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         if not (math.isfinite(args.rate_hz) and 50.0 <= args.rate_hz <= 1000.0):
             raise CliError(f"--rate-hz must be within 50-1000 Hz, got {args.rate_hz:g}")
         step_s = 1.0 / args.rate_hz
+        window = _window_steps(args, step_s)
         spec = InputSpec(features, args.prior, step_s, vehicle, None, observer_file)
-        runs, train_runs, val_runs, normalizer, train, val = _load(args, prof, spec, log)
+        runs, train_runs, val_runs, test_runs, normalizer, train, val = _load(
+            args, prof, spec, window, log
+        )
         dt_s = sample_period_s(runs)  # every bag now at step_s: a check, not a choice
     except (CliError, DatasetError, FeatureError, ImportError, ValueError) as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
@@ -364,6 +491,9 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         "observer": spec.observer,
         "train_bags": [r.name for r in train_runs],
         "val_bags": [r.name for r in val_runs],
+        "test_bags": [r.name for r in test_runs],
+        "split": _split_mode(args, train_runs + val_runs),
+        "window_steps": window,
         "data_digest": data_digest(runs),
         "normalizer": normalizer.to_dict(),
         "sample_period_s": dt_s,
@@ -423,7 +553,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         hidden_units=result.model.config.hidden_units,
         layers=result.model.config.layers,
         features=tuple(features),
-        window_steps=WINDOW_STEPS,
+        window_steps=window,
         dt_s=dt_s,
         feature_mean=tuple(float(v) for v in normalizer.mean),
         feature_std=tuple(float(v) for v in normalizer.std),
@@ -451,6 +581,16 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     except ArtifactError as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
         return 1
+    if result.best_epoch >= len(result.history) and not result.stopped_early:
+        # Always said, also with --quiet: the model was still improving when stopped.
+        print(
+            f"sideslip-train: warning: the best epoch was the last ({result.best_epoch} of "
+            f"{len(result.history)}): the model was still improving; raise --max-epochs",
+            file=sys.stderr,
+        )
+        metrics["still_improving"] = True
+    if test_runs:
+        metrics["test"] = _test_metrics(args.out, test_runs, log)
     total = time.perf_counter() - started
     summary = {**metrics, "wall_s": total, "out": str(args.out), "run_dir": str(run_dir)}
     (run_dir / "metrics.json").write_text(json.dumps(summary, indent=2) + "\n")

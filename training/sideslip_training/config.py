@@ -14,6 +14,8 @@ from typing import Final
 
 WINDOW_STEPS: Final = 100
 DT_S: Final = 0.0025
+WINDOW_S: Final = WINDOW_STEPS * DT_S
+"""The paper's window as a horizon [s]: a model at another rate keeps it."""
 
 
 @dataclass(frozen=True)
@@ -78,4 +80,13 @@ def profile(name: str) -> TrainProfile:
         raise ValueError(f"unknown profile {name!r} (known: {', '.join(PROFILES)})") from None
 
 
-__all__ = ["DT_S", "PROFILES", "WINDOW_STEPS", "PsoSettings", "TrainProfile", "profile", "replace"]
+__all__ = [
+    "DT_S",
+    "PROFILES",
+    "WINDOW_S",
+    "WINDOW_STEPS",
+    "PsoSettings",
+    "TrainProfile",
+    "profile",
+    "replace",
+]

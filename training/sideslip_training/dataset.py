@@ -440,6 +440,49 @@ def split_runs(runs: Sequence[Run], val_fraction: float, seed: int) -> tuple[lis
     return [r for r in runs if r.bag not in val_bags], [r for r in runs if r.bag in val_bags]
 
 
+def split_in_time(runs: Sequence[Run], fraction: float, suffix: str) -> tuple[list[Run], list[Run]]:
+    """Split each bag in time: its last ``fraction`` of samples (counted over all its
+    segments) go to the second list, named ``<name>@<suffix>``, the rest to the first.
+
+    For one long recording, where a split by bag is impossible: no window spans the cut
+    (the two sides are separate runs), and nothing depends on bag names.
+
+    Raises:
+        DatasetError: ``fraction`` outside (0, 1), no runs, or a bag so short that a side
+            would be empty.
+    """
+    if not 0.0 < fraction < 1.0:
+        raise DatasetError(f"a time split fraction must be in (0, 1), got {fraction!r}")
+    if not runs:
+        raise DatasetError("split_in_time: no runs to split")
+    head: list[Run] = []
+    tail: list[Run] = []
+    for bag in dict.fromkeys(r.bag for r in runs):
+        mine = [r for r in runs if r.bag == bag]
+        total = sum(len(r) for r in mine)
+        cut = total - round(fraction * total)
+        if cut <= 0 or cut >= total:
+            msg = f"{bag}: {total} samples are too few to split {fraction:g} off in time"
+            raise DatasetError(msg)
+        seen = 0
+        for r in mine:
+            n = len(r)
+            if seen + n <= cut:
+                head.append(r)
+            elif seen >= cut:
+                tail.append(dataclasses.replace(r, name=f"{r.name}@{suffix}"))
+            else:
+                k = cut - seen
+                head.append(dataclasses.replace(r, samples=_slice(r.samples, 0, k)))
+                tail.append(
+                    dataclasses.replace(
+                        r, name=f"{r.name}@{suffix}", samples=_slice(r.samples, k, n)
+                    )
+                )
+            seen += n
+    return head, tail
+
+
 # --- provenance -------------------------------------------------------------------------------
 
 
