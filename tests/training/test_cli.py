@@ -405,3 +405,75 @@ def test_test_bags_shared_with_the_training_data_are_refused(sim_bag_dir, tmp_pa
     args = ["--data", str(sim_bag_dir), "--test", str(sim_bag_dir / "dlc_70")]
     assert train_main([*args, "--model", "lstm", "--out", str(out), *TINY]) == 2
     assert "--test shares 1 bag(s) with --data" in capsys.readouterr().err
+
+
+# --- fine-tuning ---------------------------------------------------------------------------
+
+
+def test_fine_tuning_starts_from_the_models_weights_and_statistics(sim_bag_dir, tmp_path):
+    base = tmp_path / "base.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(base), *TINY]) == 0
+    tuned = tmp_path / "tuned.safetensors"
+    # A vanishing learning rate: the result must be the starting model itself.
+    frozen = ["--data", str(sim_bag_dir), "--init", str(base), "--learning-rate", "1e-12"]
+    assert train_main([*frozen, "--out", str(tuned), *TINY]) == 0
+    before, after = read_artifact(base), read_artifact(tuned)
+    for name, tensor in before[0].items():
+        np.testing.assert_allclose(after[0][name], tensor, atol=1e-6, err_msg=name)
+    m0, m1 = before[1], after[1]
+    assert (m1.architecture, m1.hidden_units, m1.features) == (
+        m0.architecture,
+        m0.hidden_units,
+        m0.features,
+    )
+    assert m1.feature_mean == m0.feature_mean and m1.beta_std == m0.beta_std  # kept
+    assert m1.provenance["init"] == "base.safetensors"
+    assert m1.provenance["normalization"] == "keep"
+    refit = tmp_path / "refit.safetensors"
+    assert train_main([*frozen, "--normalization", "refit", "--out", str(refit), *TINY]) == 0
+    assert read_artifact(refit)[1].provenance["normalization"] == "refit"
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [
+        (["--features", "measurable"], "--features measurable (the model reads paper)"),
+        (["--window-steps", "50"], "a window of 50 steps (the model's is 100)"),
+        (["--rate-hz", "200"], "--rate-hz 200 (the model runs at 400 Hz)"),
+        (["--hidden-units", "9"], "--hidden-units 9 (the model has 6)"),
+        (["--model", "bilstm"], "--model bilstm (the model is lstm)"),
+        (["--pso"], "--pso searches the hidden units"),
+    ],
+)
+def test_init_refuses_a_model_that_does_not_fit_in_one_line(
+    sim_bag_dir, tmp_path, capsys, extra, named
+):
+    base = tmp_path / "base.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(base), *TINY]) == 0
+    capsys.readouterr()
+    out = tmp_path / "t.safetensors"
+    assert (
+        train_main(
+            ["--data", str(sim_bag_dir), "--init", str(base), *extra, "--out", str(out), *TINY]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert named in err and "does not fit" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_init_takes_a_shipped_model_by_name_and_refuses_an_unknown_one(
+    sim_bag_dir, tmp_path, capsys
+):
+    out = tmp_path / "t.safetensors"
+    args = ["--data", str(sim_bag_dir), "--out", str(out), *TINY]
+    args[args.index("--max-epochs") + 1] = "1"
+    assert train_main(["--init", "fleet_lstm_paper", *args]) == 0
+    meta = read_artifact(out)[1]
+    assert meta.provenance["init"] == "fleet_lstm_paper.safetensors"
+    assert meta.prior == "kinematic_window"
+    assert train_main(["--init", "no_such_model", *args, "--force"]) == 2
+    assert "shipped: " in capsys.readouterr().err

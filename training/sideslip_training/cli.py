@@ -14,7 +14,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -32,6 +32,7 @@ from . import __version__
 from .config import DT_S, PROFILES, WINDOW_S, WINDOW_STEPS, TrainProfile, profile
 from .dataset import DatasetError, Run, data_digest, load_runs, split_in_time, split_runs
 from .export import export_model, load_model
+from .init_model import InitError, check_fit, load_init
 from .inputs import InputSpec
 from .normalize import Normalizer
 from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
@@ -117,23 +118,41 @@ def _train_parser() -> argparse.ArgumentParser:
         "every --rate-hz",
     )
     p.add_argument("--window-steps", type=int, help="window length in samples instead")
-    p.add_argument("--model", choices=["lstm", "bilstm"], required=True)
+    p.add_argument(
+        "--model",
+        choices=["lstm", "bilstm"],
+        help="architecture (required unless --init gives it)",
+    )
+    p.add_argument(
+        "--init",
+        metavar="MODEL",
+        help="fine-tune: start from this model's weights (a .safetensors or a shipped name); "
+        "its architecture, size, inputs, prior, window and rate are used, and options that "
+        "contradict them are refused",
+    )
+    p.add_argument(
+        "--normalization",
+        choices=["keep", "refit"],
+        default="keep",
+        help="with --init: keep the model's z-score statistics (default; the first epoch "
+        "starts from the model's answer) or refit them on the new data",
+    )
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
     p.add_argument(
         "--features",
-        default="paper",
         choices=list(INPUT_SETS),
-        help="model inputs: paper (X_v, Y_v, X_a, Y_a, yaw rate, STL) and measurable (no "
-        "Y_v) as measured; paper_kinematic (kinematic inputs only, no steering) and "
+        help="model inputs (default: paper; with --init: the model's): paper (X_v, Y_v, "
+        "X_a, Y_a, yaw rate, STL) and measurable (no Y_v) as measured; paper_kinematic "
+        "(kinematic inputs only, no steering) and "
         "measurable_invariant (accelerations in g, road-wheel and understeer angles, the "
         "car's mass, wheelbase, weight split and CG height as inputs); measurable_observer "
         "(measurable_invariant plus the UKF observer's β̂ and road μ̂)",
     )
     p.add_argument(
         "--prior",
-        default="none",
         choices=list(PRIORS),
-        help="physics estimate the network corrects (β̂ = prior + network): none, "
+        help="physics estimate the network corrects (β̂ = prior + network; default none, "
+        "with --init the model's): none, "
         "kinematic_window (the window's dead-reckoned atan2(Y_v, X_v); needs Y_v), or ukf "
         "(the estimator's UKF with the car's nominal parameters; measurable channels)",
     )
@@ -154,8 +173,8 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--rate-hz",
         type=float,
-        default=1.0 / DT_S,
-        help="the rate the model runs at [Hz] (default: the contract's 400): bags at "
+        help="the rate the model runs at [Hz] (default: the contract's 400; with --init the "
+        "model's): bags at "
         "another rate are resampled to it (low-pass filtered first when downsampling), "
         "bags outside 50-1000 Hz refused; the report says which",
     )
@@ -278,9 +297,17 @@ def _split_mode(args: argparse.Namespace, runs: Sequence[Run]) -> str:
     return "bag" if len({r.bag for r in runs}) >= 3 else "time"
 
 
-def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, window: int, log):
+def _load(
+    args: argparse.Namespace,
+    prof: TrainProfile,
+    spec: InputSpec,
+    window: int,
+    log,
+    normalizer: Normalizer | None = None,
+):
     """Runs for training, validation and test (the last may be empty), the statistics
-    and the window indices. Fractions are of --data: test first, then validation."""
+    (``normalizer``, or fitted on the training runs) and the window indices. Fractions
+    are of --data: test first, then validation."""
     topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
     load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
     runs, report = load_runs(args.data, **load)
@@ -329,7 +356,8 @@ def _load(args: argparse.Namespace, prof: TrainProfile, spec: InputSpec, window:
             jobs=args.workers,
             progress=not args.quiet,
         )
-    normalizer = Normalizer.fit(train_runs, spec, window)
+    if normalizer is None:
+        normalizer = Normalizer.fit(train_runs, spec, window)
     train = WindowIndex.build(train_runs, spec, normalizer, window, prof.stride)
     val = WindowIndex.build(val_runs, spec, normalizer, window, prof.stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
@@ -443,16 +471,46 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                 raise CliError(f"--{name.replace('_', '-')} must be in [0, 1), got {value}")
         if (args.val_fraction or 0.0) + args.test_fraction >= 1.0:
             raise CliError("--val-fraction + --test-fraction must leave data to train on")
-        features = input_set(args.features)
+        init = load_init(args.init) if args.init else None
+        if init is None:
+            if args.model is None:
+                raise CliError("--model is required (or --init MODEL to fine-tune one)")
+            features = input_set(args.features or "paper")
+            args.prior = args.prior or "none"
+            args.rate_hz = 1.0 / DT_S if args.rate_hz is None else args.rate_hz
+            hidden_units = (
+                prof.default_hidden_units if args.hidden_units is None else args.hidden_units
+            )
+            layers = prof.layers
+        else:
+            m = init.meta
+            given_window = (
+                _window_steps(args, m.dt_s)
+                if args.window_s is not None or args.window_steps is not None
+                else None
+            )
+            check_fit(
+                init,
+                architecture=args.model,
+                features=args.features,
+                prior=args.prior,
+                hidden_units=args.hidden_units,
+                rate_hz=args.rate_hz,
+                window_steps=given_window,
+                pso=args.pso,
+            )
+            args.model, args.prior, args.rate_hz = m.architecture, m.prior, 1.0 / m.dt_s
+            args.window_steps, args.window_s = m.window_steps, None
+            features, hidden_units, layers = tuple(m.features), m.hidden_units, m.layers
         vehicle = VehicleDescription.load(args.vehicle) if args.vehicle else None
+        if vehicle is None and init is not None and init.meta.vehicle is not None:
+            vehicle = VehicleDescription.from_mapping(init.meta.vehicle)
         if args.workers < 1:
             raise CliError(f"--workers must be >= 1, got {args.workers}")
         base = TrainConfig(
             architecture=args.model,
-            hidden_units=(
-                prof.default_hidden_units if args.hidden_units is None else args.hidden_units
-            ),
-            layers=prof.layers,
+            hidden_units=hidden_units,
+            layers=layers,
             learning_rate=(
                 prof.default_learning_rate if args.learning_rate is None else args.learning_rate
             ),
@@ -472,12 +530,14 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             raise CliError(f"--rate-hz must be within 50-1000 Hz, got {args.rate_hz:g}")
         step_s = 1.0 / args.rate_hz
         window = _window_steps(args, step_s)
-        spec = InputSpec(features, args.prior, step_s, vehicle, None, observer_file)
+        observer = init.meta.observer if init is not None else None
+        spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file)
+        keep = init.normalizer if init is not None and args.normalization == "keep" else None
         runs, train_runs, val_runs, test_runs, normalizer, train, val = _load(
-            args, prof, spec, window, log
+            args, prof, spec, window, log, normalizer=keep
         )
         dt_s = sample_period_s(runs)  # every bag now at step_s: a check, not a choice
-    except (CliError, DatasetError, FeatureError, ImportError, ValueError) as err:
+    except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
         print(f"sideslip-train: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
@@ -541,7 +601,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             return EXIT_BAD_INPUT
     else:
         try:
-            result = _train_one(base, train, val, normalizer, args.quiet)
+            state = init.net.state_dict() if init is not None else None
+            result = _train_one(base, train, val, normalizer, args.quiet, init_state=state)
         except ValueError as err:  # diverged: no epoch to export
             print(f"sideslip-train: error: {err}", file=sys.stderr)
             return 1
@@ -567,6 +628,15 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         observer=dict(spec.observer) if spec.observer is not None else None,
         created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         provenance={
+            **(
+                {
+                    "init": init.path.name,
+                    "init_data": init.meta.training_data_digest,
+                    "normalization": args.normalization,
+                }
+                if init is not None
+                else {}
+            ),
             "command": config["command"],
             "profile": prof.name,
             "device": result.device,
@@ -602,7 +672,12 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _train_one(
-    cfg: TrainConfig, train: WindowIndex, val: WindowIndex, normalizer: Normalizer, quiet: bool
+    cfg: TrainConfig,
+    train: WindowIndex,
+    val: WindowIndex,
+    normalizer: Normalizer,
+    quiet: bool,
+    init_state: Mapping[str, Any] | None = None,
 ) -> TrainResult:
     from tqdm import tqdm
 
@@ -613,7 +688,7 @@ def _train_one(
         bar.update()
 
     try:
-        return train_model(cfg, train, val, normalizer, on_epoch=on_epoch)
+        return train_model(cfg, train, val, normalizer, on_epoch=on_epoch, init_state=init_state)
     finally:
         bar.close()
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 
 import torch
@@ -112,13 +112,18 @@ def train_model(
     normalizer: Normalizer,
     *,
     on_epoch: Callable[[EpochRecord], None] | None = None,
+    init_state: Mapping[str, torch.Tensor] | None = None,
 ) -> TrainResult:
-    """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE."""
+    """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE; from the
+    weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation."""
     device = pick_device(cfg.device)
     torch.manual_seed(cfg.seed)
     model = SideslipNet(
         ModelConfig(cfg.architecture, len(normalizer.features), cfg.hidden_units, cfg.layers)
-    ).to(device)
+    )
+    if init_state is not None:
+        model.load_state_dict(dict(init_state), strict=True)
+    model = model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
     loss_fn = nn.MSELoss()
     train_t, val_t = train.to_torch(device), val.to_torch(device)
