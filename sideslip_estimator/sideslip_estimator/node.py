@@ -11,10 +11,12 @@ dropped samples, and latency stays bounded by that short queue.
 
 from __future__ import annotations
 
+import importlib
 import math
 import sys
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import rclpy.node
@@ -26,7 +28,7 @@ from sideslip_estimator.inputs import InputRejected
 from sideslip_estimator.parameters import PARAMETERS, estimator_params
 from sideslip_estimator.status import Counts, Observation, assess
 from sideslip_msgs_py import topics
-from sideslip_msgs_py.errors import MessageFieldError
+from sideslip_msgs_py.errors import BagError, MessageFieldError
 from sideslip_msgs_py.messages import RclpyMessages, imu_fields, steering_fields, twist_fields
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
@@ -38,6 +40,7 @@ from sideslip_msgs_py.outputs import (
     status_message,
 )
 from sideslip_msgs_py.parameters import help_text
+from sideslip_msgs_py.topic_map import LiveMapper, TopicMap, TopicMapError
 
 NODE_NAME = "sideslip_estimator"
 LOG_EVERY_S = 5.0  # repeated rejections of one kind are logged at most this often
@@ -60,6 +63,7 @@ class EstimatorNode(rclpy.node.Node):
                 raise ValueError(
                     f"velocity_sigma_mps must be finite and >= 0, got {v['velocity_sigma_mps']}"
                 )
+            mapped = _mapped_inputs(str(v["topic_map_file"]), backend)
         except (BackendError, ValueError) as err:
             self.get_logger().fatal(f"bad parameter: {err}")
             raise SystemExit(2) from None
@@ -72,14 +76,29 @@ class EstimatorNode(rclpy.node.Node):
         msgs = self.msgs
         self.inputs: dict[str, tuple[Any, str]] = {}
         self._last_rx: dict[str, float | None] = {}
-        for topic, msg_type, handler in (
-            (topics.IMU, msgs.Imu, self._on_imu),
-            (topics.TWIST, msgs.TwistStamped, self._on_twist),
-            (topics.STEERING, msgs.JointState, self._on_steering),
-        ):
-            sub = self.create_subscription(msg_type, topic, handler, profile_for(topic))
+        self.mapper: LiveMapper | None = None
+        if mapped is None:
+            subscriptions = [
+                (topics.IMU, msgs.Imu, self._on_imu, topics.TOPIC_TYPES[topics.IMU]),
+                (topics.TWIST, msgs.TwistStamped, self._on_twist, topics.TOPIC_TYPES[topics.TWIST]),
+                (
+                    topics.STEERING,
+                    msgs.JointState,
+                    self._on_steering,
+                    topics.TOPIC_TYPES[topics.STEERING],
+                ),
+            ]
+        else:  # topics of another stack, through the topic map
+            self.mapper, classes = mapped
+            subscriptions = [
+                (topic, cls, partial(self._on_mapped, topic), name)
+                for topic, (cls, name) in classes.items()
+            ]
+        for topic, msg_type, handler, type_name in subscriptions:
+            # Best effort, keep last 5: matches reliable and best-effort publishers alike.
+            sub = self.create_subscription(msg_type, topic, handler, profile_for(topics.IMU))
             # Remapping may rename the topic: report and check the resolved name.
-            self.inputs[topic] = (sub, topics.TOPIC_TYPES[topic])
+            self.inputs[topic] = (sub, type_name)
             self._last_rx[sub.topic_name] = None
         self.pub_beta = self.create_publisher(
             msgs.Float64, topics.SIDESLIP, profile_for(topics.SIDESLIP)
@@ -153,7 +172,28 @@ class EstimatorNode(rclpy.node.Node):
         self._check_frame(name, msg.header.frame_id)
         fields = imu_fields(msg)
         self._last_imu = (fields.stamp_ns, time.monotonic())
-        out = self._guard(lambda: self.core.on_imu(name, fields))
+        self._publish(self._guard(lambda: self.core.on_imu(name, fields)), start)
+
+    def _on_mapped(self, topic: str, msg: Any) -> None:
+        """A message on a topic of the topic map: the clock topic's forms a sample."""
+        start = time.perf_counter()
+        name = self._received(topic)
+        assert self.mapper is not None
+        try:
+            fields = self.mapper.on_message(topic, msg, self.get_clock().now().nanoseconds)
+        except BagError as err:
+            self.core.reject_message("bad_message", str(err))
+            self._log_rejection("bad_message", str(err))
+            return
+        if fields is None:
+            return
+        twist, steering, imu = fields
+        self._guard(lambda: self.core.on_twist(name, twist))
+        self._guard(lambda: self.core.on_steering(name, steering))
+        self._last_imu = (imu.stamp_ns, time.monotonic())
+        self._publish(self._guard(lambda: self.core.on_imu(name, imu)), start)
+
+    def _publish(self, out: Any, start: float) -> None:
         if out is None:
             return
         est = out.estimate
@@ -246,6 +286,38 @@ class EstimatorNode(rclpy.node.Node):
                 values=status.values,
             )
         )
+
+
+def _mapped_inputs(path: str, backend: Any) -> tuple[LiveMapper, dict[str, tuple[Any, str]]] | None:
+    """The topic map's mapper and message class per topic (None without a map).
+
+    Raises ValueError naming the file: a map that cannot be read or used live, a type
+    that is not installed, or a model channel the map leaves out."""
+    if not path:
+        return None
+    try:
+        topic_map = TopicMap.load(path)
+        types = topic_map.input_types()
+    except TopicMapError as err:
+        raise ValueError(f"topic_map_file: {err}") from None
+    reads = set(getattr(backend, "channels", ()))
+    missing = sorted(reads - set(topic_map.channels) - {"y_v_mps"})
+    if "y_v_mps" in reads and "y_v_mps" not in topic_map.channels:
+        missing.append("y_v_mps")
+    if missing:
+        raise ValueError(
+            f"topic_map_file: {path} does not map {missing}, which {backend.model_id} reads"
+        )
+    classes = {}
+    for topic, name in types.items():
+        package, _, type_name = name.partition("/msg/")
+        try:
+            classes[topic] = (getattr(importlib.import_module(f"{package}.msg"), type_name), name)
+        except (ImportError, AttributeError, ValueError):
+            raise ValueError(
+                f"topic_map_file: message type {name} of {topic} is not installed"
+            ) from None
+    return LiveMapper(topic_map), classes
 
 
 def main(argv: Sequence[str] | None = None) -> int:

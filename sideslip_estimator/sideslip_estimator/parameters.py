@@ -19,6 +19,12 @@ PARAMETERS = (
     ),
     ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
     ParameterSpec(
+        "topic_map_file",
+        "",
+        "Inputs from another stack's topics: a topic map YAML (docs/topic-maps.md) with the "
+        'message type of each entry; "" = the contract topics /vehicle/imu, twist, steering.',
+    ),
+    ParameterSpec(
         "max_input_age_s",
         0.05,
         "A sample is rejected when its twist or steering stamp differs from the IMU stamp "

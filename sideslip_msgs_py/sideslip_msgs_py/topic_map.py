@@ -64,12 +64,14 @@ class TopicMapError(ValueError):
 
 @dataclass(frozen=True)
 class FieldSource:
-    """One value: ``field`` of the messages on ``topic``, times ``scale`` plus ``offset``."""
+    """One value: ``field`` of the messages on ``topic``, times ``scale`` plus ``offset``;
+    ``type`` (e.g. ``nav_msgs/msg/Odometry``) is needed live only (a bag records it)."""
 
     topic: str
     field: str
     scale: float = 1.0
     offset: float = 0.0
+    type: str | None = None
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,7 @@ class HeadingSource:
     topic: str
     field: str
     kind: str = "quaternion"
+    type: str | None = None
 
 
 @dataclass(frozen=True)
@@ -148,11 +151,34 @@ class TopicMap:
         headings = [h for h in (self.velocity_heading, self.reference_heading) if h]
         return {s.topic for s in sources} | {h.topic for h in headings}
 
+    def input_types(self) -> dict[str, str]:
+        """Message type of every topic the inputs read (channels and their heading), for
+        subscribing live. Raises :class:`TopicMapError` for a topic without a ``type``
+        or with two."""
+        sources: list[FieldSource | HeadingSource] = list(self.channels.values())
+        if self.velocity_heading is not None:
+            sources.append(self.velocity_heading)
+        types: dict[str, set[str]] = {}
+        for src in sources:
+            types.setdefault(src.topic, set())
+            if src.type:
+                types[src.topic].add(src.type)
+        missing = sorted(t for t, ts in types.items() if not ts)
+        if missing:
+            raise TopicMapError(
+                f"{self.source}: live input needs the message type of {missing} "
+                "(add e.g. type: sensor_msgs/msg/Imu to each of their entries)"
+            )
+        two = sorted(t for t, ts in types.items() if len(ts) > 1)
+        if two:
+            raise TopicMapError(f"{self.source}: two message types given for {two}")
+        return {t: ts.pop() for t, ts in types.items()}
+
 
 def _source(spec: Any, source: str, key: str) -> FieldSource:
     if not isinstance(spec, Mapping) or not {"topic", "field"} <= set(spec):
         raise TopicMapError(f"{source}: {key} needs 'topic' and 'field'")
-    unknown = set(spec) - {"topic", "field", "scale", "offset"}
+    unknown = set(spec) - {"topic", "field", "scale", "offset", "type"}
     if unknown:
         raise TopicMapError(f"{source}: {key}: unknown key(s) {sorted(unknown)}")
     try:
@@ -161,7 +187,10 @@ def _source(spec: Any, source: str, key: str) -> FieldSource:
         raise TopicMapError(f"{source}: {key}: scale and offset must be numbers") from None
     if not (math.isfinite(scale) and math.isfinite(offset)) or scale == 0.0:
         raise TopicMapError(f"{source}: {key}: scale must be finite and non-zero")
-    return FieldSource(str(spec["topic"]), str(spec["field"]), scale, offset)
+    kind = spec.get("type")
+    return FieldSource(
+        str(spec["topic"]), str(spec["field"]), scale, offset, None if kind is None else str(kind)
+    )
 
 
 def _heading(spec: Any, source: str, where: str) -> HeadingSource | None:
@@ -172,7 +201,10 @@ def _heading(spec: Any, source: str, where: str) -> HeadingSource | None:
     kind = str(spec.get("kind", "quaternion"))
     if kind not in _HEADING_KINDS:
         raise TopicMapError(f"{source}: {where}.heading kind must be one of {_HEADING_KINDS}")
-    return HeadingSource(str(spec["topic"]), str(spec["field"]), kind)
+    msg_type = spec.get("type")
+    return HeadingSource(
+        str(spec["topic"]), str(spec["field"]), kind, None if msg_type is None else str(msg_type)
+    )
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -335,3 +367,69 @@ def _to_body(
     yaw = _at(yaw_series, stamps)
     c, s = np.cos(yaw), np.sin(yaw)
     return c * v_x + s * v_y, -s * v_x + c * v_y
+
+
+# --- live ------------------------------------------------------------------------------------
+
+
+class LiveMapper:
+    """The estimator node's inputs from mapped topics, one message at a time (no rclpy).
+
+    Each message updates the channels its topic gives (value and stamp: ``header.stamp``,
+    else the receive time). A message on the clock channel's topic then yields the
+    core's three inputs, built from the latest values: the twist stamped as its
+    ``x_v_mps`` source, the steering as its ``stl_m`` source, the IMU as the clock
+    message. An unmapped ``y_v_mps`` is passed as 0 (the node refuses models that read
+    it); an unmapped yaw rate or acceleration makes no sample.
+    """
+
+    def __init__(self, topic_map: TopicMap) -> None:
+        self.map = topic_map
+        self.clock_topic = topic_map.channels[topic_map.clock].topic
+        self._values: dict[str, tuple[int, float]] = {}
+        self._yaw: float | None = None
+        self._by_topic: dict[str, list[tuple[str, FieldSource]]] = {}
+        for name, src in topic_map.channels.items():
+            self._by_topic.setdefault(src.topic, []).append((name, src))
+
+    def on_message(self, topic: str, msg: Any, receive_ns: int) -> tuple[Any, Any, Any] | None:
+        """Take one message; on the clock topic, ``(TwistFields, SteeringFields,
+        ImuFields)`` for the core (else None).
+
+        Raises:
+            BagError: the message lacks a mapped field (the message names it).
+        """
+        from .messages import ImuFields, SteeringFields, TwistFields
+
+        header = getattr(msg, "header", None)
+        stamp = (
+            int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+            if header is not None
+            else receive_ns
+        )
+        heading = self.map.velocity_heading
+        try:
+            for name, src in self._by_topic.get(topic, ()):
+                value = float(field_value(msg, src.field)) * src.scale + src.offset
+                self._values[name] = (stamp, value)
+            if heading is not None and heading.topic == topic:
+                self._yaw = _yaw(field_value(msg, heading.field), heading.kind)
+        except (AttributeError, KeyError, IndexError, TypeError, ValueError) as err:
+            raise BagError(f"{topic}: a mapped field is missing or not a number: {err}") from None
+        if topic != self.clock_topic:
+            return None
+        v = self._values
+        needed = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
+        if any(n not in v for n in needed):
+            return None
+        x_v, y_v = v["x_v_mps"][1], v.get("y_v_mps", (0, 0.0))[1]
+        if heading is not None:
+            if self._yaw is None:
+                return None
+            c, s = math.cos(self._yaw), math.sin(self._yaw)
+            x_v, y_v = c * x_v + s * y_v, -s * x_v + c * y_v
+        return (
+            TwistFields(v["x_v_mps"][0], x_v, y_v),
+            SteeringFields(v["stl_m"][0], v["stl_m"][1], math.nan),
+            ImuFields(stamp, v["x_a_mps2"][1], v["y_a_mps2"][1], v["yaw_rate_radps"][1]),
+        )

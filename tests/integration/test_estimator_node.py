@@ -388,3 +388,129 @@ def test_an_input_in_another_frame_is_a_warning_and_still_used(estimator):
     assert found[0] == 1 and f"{topics.IMU}: frame_id 'map', expected 'base_link'" in found[1]
     wait_for(lambda: len(rig.beta) > 0, 10, "estimates from the IMU in another frame")
     wait_for(lambda: "frame mismatch" in rig.child.output(), 5, "a log line")
+
+
+LIVE_MAP = {
+    "channels": {
+        "x_a_mps2": {
+            "topic": "/imu/data",
+            "field": "linear_acceleration.x",
+            "type": "sensor_msgs/msg/Imu",
+        },
+        "y_a_mps2": {
+            "topic": "/imu/data",
+            "field": "linear_acceleration.y",
+            "type": "sensor_msgs/msg/Imu",
+        },
+        "yaw_rate_radps": {
+            "topic": "/imu/data",
+            "field": "angular_velocity.z",
+            "type": "sensor_msgs/msg/Imu",
+        },
+        "x_v_mps": {
+            "topic": "/odom",
+            "field": "twist.twist.linear.x",
+            "type": "nav_msgs/msg/Odometry",
+        },
+        "y_v_mps": {
+            "topic": "/odom",
+            "field": "twist.twist.linear.y",
+            "type": "nav_msgs/msg/Odometry",
+        },
+        "stl_m": {
+            "topic": "/steering_wheel_deg",
+            "field": "data",
+            "scale": 0.00021,
+            "type": "std_msgs/msg/Float64",
+        },
+    }
+}
+
+
+def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_path):
+    import yaml
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu
+
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump(LIVE_MAP))
+    spawn(
+        "sideslip-estimator",
+        "--ros-args",
+        "-p",
+        "backend:=kinematic",
+        "-p",
+        f"topic_map_file:={path}",
+        "-p",
+        "max_gap_s:=5.0",
+        "-p",
+        "window_steps:=20",
+    )
+    twist = probe.subscribe(
+        topics.SIDESLIP_TWIST, TwistWithCovarianceStamped, profile_for(topics.SIDESLIP_TWIST)
+    )
+    pubs = {
+        "/imu/data": probe.publisher("/imu/data", Imu, 10),
+        "/odom": probe.publisher("/odom", Odometry, 10),
+        "/steering_wheel_deg": probe.publisher("/steering_wheel_deg", Float64, 10),
+    }
+    for pub in pubs.values():
+        probe.wait_for_subscribers(pub)
+    sent = {}
+    for k in range(60):
+        stamp = time.time_ns()
+        sec, nanosec = divmod(stamp, 10**9)
+        odom = Odometry()
+        odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
+        odom.twist.twist.linear.x, odom.twist.twist.linear.y = 20.0, 0.3 + 0.01 * k
+        pubs["/odom"].publish(odom)
+        pubs["/steering_wheel_deg"].publish(Float64(data=30.0))
+        imu = Imu()
+        imu.header.stamp.sec, imu.header.stamp.nanosec = sec, nanosec
+        imu.header.frame_id = "imu_link"
+        imu.linear_acceleration.y, imu.angular_velocity.z = 2.0, 0.1
+        pubs["/imu/data"].publish(imu)
+        sent[stamp] = math.atan2(0.3 + 0.01 * k, 20.0)
+        time.sleep(0.003)
+    wait_for(lambda: len(twist) >= 20, 10, "estimates from the mapped topics")
+    for rec in twist:
+        stamp = stamp_of(rec.msg)
+        assert stamp in sent  # stamped with the IMU message it came from
+        beta = math.atan(rec.msg.twist.twist.linear.y / rec.msg.twist.twist.linear.x)
+        assert beta == pytest.approx(sent[stamp], abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("change", "named"),
+    [
+        ("no_types", "needs the message type"),
+        ("no_y_v", "does not map ['y_v_mps']"),
+        ("bad_type", "nav_msgs/msg/NoSuchType of /odom is not installed"),
+    ],
+)
+def test_an_unusable_topic_map_exits_2_naming_why(spawn, tmp_path, change, named):
+    import copy
+
+    import yaml
+
+    spec = copy.deepcopy(LIVE_MAP)
+    if change == "no_types":
+        for entry in spec["channels"].values():
+            entry.pop("type")
+    elif change == "no_y_v":
+        del spec["channels"]["y_v_mps"]
+    else:
+        for name in ("x_v_mps", "y_v_mps"):
+            spec["channels"][name]["type"] = "nav_msgs/msg/NoSuchType"
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    child = spawn(
+        "sideslip-estimator",
+        "--ros-args",
+        "-p",
+        "backend:=kinematic",
+        "-p",
+        f"topic_map_file:={path}",
+    )
+    assert child.proc.wait(30) == 2, child.output()
+    assert named in child.output() and "Traceback" not in child.output()

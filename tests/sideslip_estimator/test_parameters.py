@@ -63,6 +63,7 @@ STR_NAMES = {
     "observer_params_file",
     "engine",
     "frame_id",
+    "topic_map_file",
 }
 
 

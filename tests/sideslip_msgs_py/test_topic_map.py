@@ -110,3 +110,32 @@ def test_a_velocity_turned_into_the_world_and_back_is_unchanged(
     s = read_mapped_bag(bag, TopicMap.from_dict(TOPIC_MAP)).samples
     np.testing.assert_allclose(s.truth_v_x_mps, v_x, atol=1e-9)
     np.testing.assert_allclose(s.truth_v_y_mps, v_y, atol=1e-9)
+
+
+def test_the_live_mapper_forms_a_sample_on_each_clock_message_from_the_latest_values() -> None:
+    from rosbags.typesys import Stores, get_typestore
+
+    from sideslip_msgs_py.topic_map import LiveMapper
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    Float64 = ts.types["std_msgs/msg/Float64"]
+    spec = {
+        "channels": {
+            "x_a_mps2": {"topic": "/ax", "field": "data"},
+            "y_a_mps2": {"topic": "/ay", "field": "data"},
+            "yaw_rate_radps": {"topic": "/ay", "field": "data", "scale": 0.01},
+            "x_v_mps": {"topic": "/v", "field": "data"},
+            "stl_m": {"topic": "/wheel", "field": "data", "scale": 0.5},
+        }
+    }
+    mapper = LiveMapper(TopicMap.from_dict(spec))
+    assert mapper.clock_topic == "/ay"
+    assert mapper.on_message("/ay", Float64(data=2.0), 100) is None  # nothing else yet
+    for topic, value, t in (("/ax", 0.1, 110), ("/v", 20.0, 120), ("/wheel", 0.04, 130)):
+        assert mapper.on_message(topic, Float64(data=value), t) is None
+    twist, steering, imu = mapper.on_message("/ay", Float64(data=3.0), 140)
+    assert (twist.stamp_ns, twist.x_v_mps, twist.y_v_mps) == (120, 20.0, 0.0)  # y_v unmapped
+    assert (steering.stamp_ns, steering.stl_m) == (130, 0.02)
+    assert (imu.stamp_ns, imu.x_a_mps2, imu.y_a_mps2, imu.yaw_rate_radps) == (140, 0.1, 3.0, 0.03)
+    with pytest.raises(BagError, match="/v: a mapped field"):
+        mapper.on_message("/v", ts.types["std_msgs/msg/String"](data="x"), 150)

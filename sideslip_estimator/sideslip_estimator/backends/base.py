@@ -43,6 +43,8 @@ class Backend(Protocol):
     sample_period_s: float | None
     """The step [s] the model was trained at, which its inputs must keep; None for
     back-ends that integrate over the stamps and run at any rate."""
+    channels: tuple[str, ...]
+    """The window channels (``CHANNELS`` names) the back-end reads."""
 
     def reset(self) -> None: ...
 

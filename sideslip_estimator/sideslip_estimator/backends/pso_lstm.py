@@ -219,6 +219,7 @@ class PsoLstmBackend:
             raise BackendError(msg)
         self._vehicle = _vehicle_for(meta, str(v["vehicle_file"]), label)
         self._channels = meta.channels
+        self.channels = tuple(meta.channels)
         self._observer = _observer_for(meta, observer_file, label, window_steps)
         self._observed: deque[tuple[float, ...]] = deque(maxlen=window_steps)
 
