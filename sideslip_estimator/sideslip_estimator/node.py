@@ -113,6 +113,7 @@ class EstimatorNode(rclpy.node.Node):
         )
         self._twist_msg = sideslip_twist_message(self.msgs, 0, 0.0, 0.0, 0.0, 0.0)
         self._latencies: list[float] = []
+        self._sigmas: list[float] = []
         self._seen = Counts.of(self.core.stats)
         self._logged: dict[str, float] = {}
         self._wrong_types_logged: set[str] = set()
@@ -209,6 +210,7 @@ class EstimatorNode(rclpy.node.Node):
             )
         )
         self._latencies.append(time.perf_counter() - start)
+        self._sigmas.append(math.sqrt(est.variance_rad2))
 
     def _log_rejection(self, reason: str, detail: str) -> None:
         now = time.monotonic()
@@ -272,8 +274,9 @@ class EstimatorNode(rclpy.node.Node):
             rate_refused=core.rate_refused,
             held=core.held,
             future_stamps=core.stats.future_stamps,
+            sigmas_rad=self._sigmas,
         )
-        self._latencies = []
+        self._latencies, self._sigmas = [], []
         status = assess(obs, self.core.stats, self.backend_name, self.core.backend.model_id)
         self.pub_status.publish(
             status_message(

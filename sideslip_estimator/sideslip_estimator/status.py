@@ -71,6 +71,8 @@ class Observation:
     """IMU messages held: a stamp jump waiting for the next message."""
     future_stamps: int = 0
     """IMU messages found stamped ahead of their time line, since start."""
+    sigmas_rad: Sequence[float] = ()
+    """The published standard deviation of each estimate since the previous status."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,17 @@ class Status:
     level: int
     message: str
     values: dict[str, str]
+
+
+def _sigma_values(sigmas_rad: Sequence[float]) -> dict[str, str]:
+    """p50 / p95 of the published σ of β̂ [deg] since the previous status."""
+    sig = np.degrees(np.asarray(sigmas_rad, dtype=float))
+    if not sig.size:
+        return {"beta_sigma_deg_p50": "n/a", "beta_sigma_deg_p95": "n/a"}
+    return {
+        "beta_sigma_deg_p50": f"{np.percentile(sig, 50):.4f}",
+        "beta_sigma_deg_p95": f"{np.percentile(sig, 95):.4f}",
+    }
 
 
 def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str) -> Status:
@@ -139,6 +152,7 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
         },
         "latency_ms_p50": f"{np.percentile(lat, 50):.3f}" if lat.size else "n/a",
         "latency_ms_p99": f"{np.percentile(lat, 99):.3f}" if lat.size else "n/a",
+        **_sigma_values(obs.sigmas_rad),
         "estimates": str(stats.estimates),
         "accepted_samples": str(stats.accepted),
         "rejected_samples": str(sum(stats.rejected.values())),

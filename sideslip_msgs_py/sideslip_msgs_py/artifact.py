@@ -143,6 +143,10 @@ class ModelMetadata:
     """Parameters of the ``ukf`` back-end (all but ``params_file``) that computed the
     ``ukf.*`` inputs or prior in training; deployment runs the same filter with the car's
     ``ukf`` params file. Required exactly when the model reads the observer."""
+    uncertainty: dict[str, Any] | None = field(default=None, hash=False)
+    """The per-sample standard deviation model
+    (:class:`~sideslip_msgs_py.uncertainty.Uncertainty` as a dict), or None: the
+    estimator then publishes the validation RMSE² as every sample's variance."""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self) -> None:
@@ -212,6 +216,14 @@ class ModelMetadata:
             if not isinstance(v, dict):
                 raise fail(f"{name} must be a JSON object (dict), got {type(v).__name__}")
             object.__setattr__(self, name, _json_value(v, name))
+        if self.uncertainty is not None:
+            from .uncertainty import Uncertainty, UncertaintyError
+
+            try:
+                unc = Uncertainty.from_dict(self.uncertainty)
+            except UncertaintyError as err:
+                raise fail(str(err)) from None
+            object.__setattr__(self, "uncertainty", unc.to_dict())
         rmse = self.metrics.get(VALIDATION_RMSE_KEY)
         if rmse is not None and not (_is_real(rmse) and math.isfinite(rmse) and rmse >= 0):
             raise fail(f"metrics.{VALIDATION_RMSE_KEY} must be a finite number >= 0, got {rmse!r}")

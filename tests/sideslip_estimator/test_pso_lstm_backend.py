@@ -272,3 +272,23 @@ def test_importing_the_backends_does_not_import_torch() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
     )
     assert out.stdout.strip() == "[]"
+
+
+def test_the_shipped_default_publishes_a_sigma_that_follows_the_driving() -> None:
+    """Its uncertainty model: wider at low speed and in hard cornering than cruising."""
+    from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
+    from sideslip_msgs_py.features import CHANNELS
+
+    backend = create_backend("pso_lstm", {}, 100)
+    assert isinstance(backend, PsoLstmBackend) and backend.meta.uncertainty is not None
+
+    def variance(x_v: float, y_a: float, r: float) -> float:
+        rows = np.zeros((100, len(CHANNELS)))
+        rows[:, CHANNELS.index("x_v_mps")] = x_v
+        rows[:, CHANNELS.index("y_a_mps2")] = y_a
+        rows[:, CHANNELS.index("yaw_rate_radps")] = r
+        return backend._variance(rows)
+
+    cruising = variance(30.0, 0.0, 0.0)
+    assert variance(5.0, 0.0, 0.0) > 10 * cruising
+    assert variance(30.0, 8.0, 0.0) > cruising  # a_y without the matching yaw rate: β̇ ≠ 0

@@ -180,3 +180,11 @@ def test_a_model_refusing_the_input_rate_is_an_error_naming_both_rates() -> None
     status = _assess(_obs(input_rate_hz=200.0, rate_refused=True, new_estimates=0))
     assert status.level == DIAGNOSTIC_ERROR
     assert "IMU at 200.0 Hz, the model expects 400 Hz: no estimate" in status.message
+
+
+def test_the_published_sigma_is_summarised_in_degrees() -> None:
+    import math
+
+    v = _assess(_obs(sigmas_rad=[math.radians(0.05)] * 19 + [math.radians(0.5)])).values
+    assert v["beta_sigma_deg_p50"] == "0.0500" and float(v["beta_sigma_deg_p95"]) > 0.05
+    assert _assess(_obs()).values["beta_sigma_deg_p50"] == "n/a"

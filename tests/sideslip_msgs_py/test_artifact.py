@@ -394,3 +394,15 @@ def test_metadata_is_a_frozen_value() -> None:
         meta.hidden_units = 8  # type: ignore[misc]
     assert meta.directions == 1
     assert make_meta(architecture="bilstm").directions == 2
+
+
+def test_a_per_sample_uncertainty_model_round_trips_and_is_checked(tmp_path: Path) -> None:
+    from sideslip_msgs_py.uncertainty import Uncertainty
+
+    unc = Uncertainty((1e-8, 2.5e-4, 8e-8, 1.5e-4), 1.09)
+    meta = make_meta(uncertainty=unc.to_dict())
+    path = write_artifact(tmp_path / "m.safetensors", random_tensors(meta), meta)
+    assert Uncertainty.from_dict(read_artifact(path)[1].uncertainty) == unc
+    assert make_meta().uncertainty is None  # older models: the validation RMSE²
+    with pytest.raises(ArtifactError, match="uncertainty: scale"):
+        make_meta(uncertainty={"coefficients": [1, 2, 3, 4], "scale": -1.0})

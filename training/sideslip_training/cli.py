@@ -852,6 +852,7 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
         FilterError,
         evaluate_runs,
         model_label,
+        plot_band,
         plot_error_pdfs,
         plot_traces,
         pooled,
@@ -935,6 +936,8 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
         (args.out / "table.csv").write_text(table_csv(traces))
         plot_traces(traces, args.out)
         plot_error_pdfs(traces, args.out)
+        for i, t in enumerate(tr for tr in traces if tr.sigma_rad is not None):
+            plot_band(t, args.out / f"band_{t.scenario}_{i}.png")
 
         def strict(m) -> dict:  # strict JSON: an undefined metric (R² of a straight) is null
             return {
@@ -948,7 +951,12 @@ def evaluate_main(argv: Sequence[str] | None = None) -> int:
             "smoothing_steps": args.smoothing,
             "filters": filters,
             "results": [
-                {"scenario": t.scenario, "estimator": t.estimator, **strict(t.metrics)}
+                {
+                    "scenario": t.scenario,
+                    "estimator": t.estimator,
+                    **strict(t.metrics),
+                    **({} if t.sigma_rad is None else {"coverage_95": t.coverage}),
+                }
                 for t in traces
             ],
             "pooled": [{"estimator": n, **strict(m)} for n, m in pooled(traces).items()],

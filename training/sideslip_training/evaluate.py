@@ -22,6 +22,7 @@ import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
 from sideslip_msgs_py.model_inputs import INPUT_SETS
+from sideslip_msgs_py.uncertainty import Z_95, Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from .dataset import Run
@@ -82,10 +83,30 @@ class Trace:
     t_s: FloatArray
     estimate_rad: FloatArray
     reference_rad: FloatArray
+    sigma_rad: FloatArray | None = None
+    """The published standard deviation per sample (models with an uncertainty model)."""
 
     @property
     def metrics(self) -> Metrics:
         return metrics_deg(self.estimate_rad, self.reference_rad)
+
+    @property
+    def coverage(self) -> float:
+        """Share of the scored samples whose reference is within ±1.96 σ (NaN without σ)."""
+        return interval_coverage([self])
+
+
+def interval_coverage(traces: Sequence[Trace], z: float = Z_95) -> float:
+    """Share of samples, over ``traces``, with |β̂ − β| ≤ z·σ (NaN when none has σ)."""
+    inside = total = 0
+    for t in traces:
+        if t.sigma_rad is None:
+            continue
+        ok = np.isfinite(t.estimate_rad) & np.isfinite(t.reference_rad) & np.isfinite(t.sigma_rad)
+        err = np.abs(t.estimate_rad - t.reference_rad)[ok]
+        inside += int(np.count_nonzero(err <= z * t.sigma_rad[ok]))
+        total += int(err.size)
+    return inside / total if total else math.nan
 
 
 def model_label(meta: ModelMetadata) -> str:
@@ -210,6 +231,7 @@ def evaluate_runs(
             estimators.append(
                 (FILTER_LABELS[backend], physics_filter(run, backend, params_file, window_steps))
             )
+        sigmas: dict[str, FloatArray] = {}
         for name, model, meta in models:
             if meta.window_steps != window_steps:
                 raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
@@ -225,8 +247,14 @@ def evaluate_runs(
                     ),
                 )
             )
+            if meta.uncertainty is not None:
+                s = run.samples
+                var = Uncertainty.from_dict(meta.uncertainty).variance(
+                    s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
+                )
+                sigmas[name] = np.sqrt(var[window_steps - 1 :])
         for name, est in estimators:
-            traces.append(Trace(run.name, name, t, est, ref))
+            traces.append(Trace(run.name, name, t, est, ref, sigmas.get(name)))
     return traces
 
 
@@ -268,6 +296,21 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
         "\n*mean*: the average of the per-bag figures (each bag counts once); *pooled*: "
         "over all samples of all bags (each sample counts once).\n"
     )
+    with_sigma = [n for n in dict.fromkeys(t.estimator for t in traces) if _has_sigma(traces, n)]
+    if with_sigma:
+        out.write("\nShare of samples inside the published 95 % interval (β̂ ± 1.96 σ):\n\n")
+        out.write("| Scenario | " + " | ".join(with_sigma) + " |\n")
+        out.write("|---|" + "---|" * len(with_sigma) + "\n")
+        for scen in dict.fromkeys(t.scenario for t in traces):
+            cells = [
+                interval_coverage([t for t in traces if t.scenario == scen and t.estimator == n])
+                for n in with_sigma
+            ]
+            out.write(f"| {scen} | " + " | ".join(_num(c, ".3f") for c in cells) + " |\n")
+        pooled_cov = [
+            interval_coverage([t for t in traces if t.estimator == n]) for n in with_sigma
+        ]
+        out.write("| pooled | " + " | ".join(_num(c, ".3f") for c in pooled_cov) + " |\n")
     excluded = {name: 0 for _, name, _ in rows}
     for _, name, m in rows:
         excluded[name] += m.excluded
@@ -278,6 +321,39 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
             f"speed or a non-finite sample in the bag): {'; '.join(notes)}.\n"
         )
     return out.getvalue()
+
+
+def _has_sigma(traces: Sequence[Trace], estimator: str) -> bool:
+    return any(t.sigma_rad is not None for t in traces if t.estimator == estimator)
+
+
+def plot_band(trace: Trace, path: Path) -> Path:
+    """One run: the reference, the estimate and its published 95 % band [deg]."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if trace.sigma_rad is None:
+        raise ValueError(f"{trace.estimator} publishes no per-sample σ")
+    est, sig = np.degrees(trace.estimate_rad), np.degrees(trace.sigma_rad)
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    ax.fill_between(
+        trace.t_s, est - Z_95 * sig, est + Z_95 * sig, alpha=0.3, lw=0, label="β̂ ± 1.96 σ"
+    )
+    ax.plot(trace.t_s, est, lw=1.0, label=trace.estimator)
+    ax.plot(trace.t_s, np.degrees(trace.reference_rad), "k--", lw=1.0, label="Reference")
+    ax.set(
+        xlabel="t [s]",
+        ylabel="β [deg]",
+        title=f"{trace.scenario}: {trace.coverage:.1%} of samples inside the band",
+    )
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:

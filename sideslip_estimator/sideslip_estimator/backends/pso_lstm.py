@@ -78,8 +78,12 @@ from sideslip_msgs_py.model_inputs import (
     prior_of_window,
 )
 from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
+from ..inputs import X_V as _X_V
+from ..inputs import Y_A as _Y_A
+from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
 
@@ -232,6 +236,10 @@ class PsoLstmBackend:
         rmse_deg = meta.metrics.get(VALIDATION_RMSE_KEY)
         sigma = math.radians(rmse_deg) if rmse_deg is not None else DEFAULT_SIGMA_RAD
         self.variance_rad2 = sigma * sigma
+        """The variance of models without an uncertainty model (validation RMSE²)."""
+        self._uncertainty = (
+            Uncertainty.from_dict(meta.uncertainty) if meta.uncertainty is not None else None
+        )
         self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
         self._std = np.asarray(meta.feature_std, dtype=np.float64)
 
@@ -276,7 +284,7 @@ class PsoLstmBackend:
             if y is None or not math.isfinite(y):
                 return None
             if self.meta.prior == "none":
-                return Estimate(denormalize_beta(y, self.meta), self.variance_rad2)
+                return Estimate(denormalize_beta(y, self.meta), self._variance(rows))
         elif rows.shape[0] < self.window_steps or (
             self._observer is not None and len(self._observed) < self.window_steps
         ):
@@ -298,7 +306,17 @@ class PsoLstmBackend:
             y = self._window_net((x - self._mean) / self._std)
             if not math.isfinite(y):
                 return None
-        return Estimate(denormalize_beta(y, self.meta) + prior, self.variance_rad2)
+        return Estimate(denormalize_beta(y, self.meta) + prior, self._variance(rows))
+
+    def _variance(self, rows: npt.NDArray[np.float64]) -> float:
+        """The published variance [rad²]: the model's uncertainty at the newest row, or
+        the validation RMSE² for a model without one."""
+        if self._uncertainty is None:
+            return self.variance_rad2
+        row = rows[-1]
+        return self._uncertainty.variance_of(
+            float(row[_X_V]), float(row[_Y_A]), float(row[_YAW_RATE])
+        )
 
     def _push(
         self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]

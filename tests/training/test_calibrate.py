@@ -1,0 +1,82 @@
+"""sideslip-calibrate: a per-sample σ fitted on validation bags that covers what it says."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.uncertainty import Uncertainty, terms
+from sideslip_training.calibrate import (
+    Errors,
+    conformal_scale,
+    coverage_of,
+    fit_coefficients,
+    main,
+)
+from sideslip_training.cli import evaluate_main, train_main
+
+TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
+TRUE = np.array([1e-8, 3e-4, 1e-7, 1e-4])
+
+
+def _errors(n: int, seed: int, runs: int = 1) -> Errors:
+    """Errors drawn from the model's own form with known coefficients."""
+    rng = np.random.default_rng(seed)
+    v = rng.uniform(3.0, 40.0, n)
+    a_y = rng.normal(0.0, 4.0, n)
+    r = a_y / v + rng.normal(0.0, 0.05, n)
+    sigma = np.sqrt(terms(v, a_y, r) @ TRUE)
+    run = rng.integers(0, runs, n)
+    return Errors.from_arrays(rng.normal(0.0, 1.0, n) * sigma, v, a_y, r, run)
+
+
+def test_the_fit_recovers_a_known_noise_model_and_the_scale_is_one() -> None:
+    fit = np.array(fit_coefficients(_errors(40_000, 0)))
+    # The dominant terms come back within 10 %; the scale then corrects nothing.
+    np.testing.assert_allclose(fit[[1, 3]], TRUE[[1, 3]], rtol=0.1)
+    assert conformal_scale(_errors(40_000, 1), fit, 0.95) == pytest.approx(1.0, abs=0.05)
+
+
+@settings(max_examples=10, deadline=None)
+@given(coverage=st.sampled_from([0.8, 0.9, 0.95, 0.99]), seed=st.integers(0, 1000))
+def test_calibrated_intervals_hold_the_asked_share_of_fresh_samples(
+    coverage: float, seed: int
+) -> None:
+    fit_on, scale_on, fresh = (_errors(20_000, seed + k) for k in range(3))
+    coefficients = fit_coefficients(fit_on)
+    unc = Uncertainty(coefficients, conformal_scale(scale_on, coefficients, coverage), coverage)
+    pooled, _ = coverage_of(fresh, unc)
+    assert pooled == pytest.approx(coverage, abs=0.01)
+
+
+def test_the_cli_writes_the_model_with_its_uncertainty_and_evaluate_scores_it(
+    sim_bag_dir: Path, tmp_path: Path, capsys
+) -> None:
+    model = tmp_path / "m.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    out = tmp_path / "calibrated.safetensors"
+    assert main(["--model", str(model), "--data", str(sim_bag_dir), "--out", str(out)]) == 0
+    before, after = read_artifact(model), read_artifact(out)
+    assert after[1].uncertainty is not None and before[1].uncertainty is None
+    for name, tensor in before[0].items():
+        np.testing.assert_array_equal(after[0][name], tensor)  # the same network
+    assert 0.9 < after[1].metrics["interval_calibration"]["coverage_scale_half"] <= 1.0
+    assert "wrote" in capsys.readouterr().out
+    report = tmp_path / "report"
+    assert (
+        evaluate_main(["--model", str(out), "--data", str(sim_bag_dir), "--out", str(report)]) == 0
+    )
+    table = capsys.readouterr().out
+    assert "inside the published 95 % interval" in table and "| pooled |" in table
+    assert list(report.glob("band_*.png"))
+    # Refusals: an existing --out without --force, a coverage that means nothing.
+    assert main(["--model", str(model), "--data", str(sim_bag_dir), "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err
+    bad = ["--model", str(model), "--data", str(sim_bag_dir), "--out", str(tmp_path / "x")]
+    assert main([*bad, "--coverage", "1.5"]) == 2

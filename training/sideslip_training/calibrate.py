@@ -1,0 +1,221 @@
+"""``sideslip-calibrate``: give a model a per-sample standard deviation that means what it
+says (:mod:`sideslip_msgs_py.uncertainty`), fitted on validation bags, never on test ones.
+
+The validation runs are split by bag into two halves (seeded): the model's errors on
+the first fit the variance coefficients by Gaussian likelihood; the second half fixes
+the conformal scale, so that ±z·σ (z = 1.96 for 95 %) holds the asked share of its
+samples. The calibrated model is the same network with ``uncertainty`` in its metadata
+(and the calibration's figures in ``metrics``); the estimator then publishes that σ² in
+``/sideslip/twist`` instead of the validation RMSE².
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from sideslip_msgs_py.artifact import ArtifactError, read_artifact, write_artifact
+from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
+from sideslip_msgs_py.uncertainty import TERMS, Uncertainty, terms
+
+from .dataset import DatasetError, Run, load_runs, split_runs
+from .evaluate import predict_run
+from .export import load_model
+from .init_model import InitError, resolve
+
+FloatArray = npt.NDArray[np.float64]
+EXIT_BAD_INPUT = 2
+
+
+class Errors:
+    """A model's errors [rad] on runs, with the inputs of the uncertainty terms."""
+
+    def __init__(self, runs: Sequence[Run], model, meta) -> None:  # type: ignore[no-untyped-def]
+        w = meta.window_steps
+        parts: dict[str, list[FloatArray]] = {k: [] for k in ("err", "v", "ay", "r", "run")}
+        for i, run in enumerate(runs):
+            est = predict_run(model, meta, run)
+            s = run.samples
+            ref = s.beta_rad()[w - 1 :]
+            ok = np.isfinite(est) & np.isfinite(ref)
+            parts["err"].append((est - ref)[ok])
+            parts["v"].append(s.x_v_mps[w - 1 :][ok])
+            parts["ay"].append(s.y_a_mps2[w - 1 :][ok])
+            parts["r"].append(s.yaw_rate_radps[w - 1 :][ok])
+            parts["run"].append(np.full(int(ok.sum()), i, dtype=np.float64))
+        cat = {k: np.concatenate(v) if v else np.empty(0) for k, v in parts.items()}
+        self.err, self.v, self.ay, self.r = cat["err"], cat["v"], cat["ay"], cat["r"]
+        self.run = cat["run"].astype(np.int64)
+        self.names = [r.name for r in runs]
+
+    @classmethod
+    def from_arrays(
+        cls,
+        err: FloatArray,
+        x_v_mps: FloatArray,
+        y_a_mps2: FloatArray,
+        yaw_rate_radps: FloatArray,
+        run: npt.NDArray[np.int64] | None = None,
+    ) -> Errors:
+        """Errors given directly (``run``: each sample's run index; default all run 0)."""
+        self = cls.__new__(cls)
+        self.err, self.v, self.ay, self.r = (
+            np.asarray(a, dtype=np.float64) for a in (err, x_v_mps, y_a_mps2, yaw_rate_radps)
+        )
+        self.run = np.zeros(self.err.size, np.int64) if run is None else np.asarray(run)
+        self.names = [str(i) for i in range(int(self.run.max()) + 1 if self.run.size else 0)]
+        return self
+
+    def __len__(self) -> int:
+        return int(self.err.size)
+
+
+def fit_coefficients(errors: Errors) -> tuple[float, ...]:
+    """Coefficients c ≥ 0 of σ² = Σ c·terms maximising the Gaussian likelihood of the
+    errors (optimised over log c; a term the data do not need goes to ~0)."""
+    from scipy.optimize import minimize
+
+    t = terms(errors.v, errors.ay, errors.r)
+    e2 = errors.err**2
+    # Start: the mean squared error spread evenly over the terms' typical sizes.
+    start = np.log(np.mean(e2) / (len(TERMS) * np.maximum(t.mean(axis=0), 1e-12)))
+
+    def nll(log_c: FloatArray) -> float:
+        var = t @ np.exp(log_c)
+        return float(0.5 * np.mean(np.log(var) + e2 / var))
+
+    result = minimize(nll, start, method="Nelder-Mead", options={"maxiter": 4000, "fatol": 1e-10})
+    return tuple(float(x) for x in np.exp(result.x))
+
+
+def z_of(coverage: float) -> float:
+    """The two-sided standard normal quantile: ±z holds ``coverage`` of N(0, 1)."""
+    from scipy.stats import norm
+
+    return float(norm.ppf(0.5 + coverage / 2.0))
+
+
+def conformal_scale(errors: Errors, coefficients: Sequence[float], coverage: float) -> float:
+    """The scale s such that |err| ≤ z·s·σ for the (finite-sample corrected) share
+    ``coverage`` of the samples."""
+    sigma = np.sqrt(terms(errors.v, errors.ay, errors.r) @ np.asarray(coefficients))
+    ratio = np.sort(np.abs(errors.err) / sigma)
+    n = ratio.size
+    k = min(n - 1, math.ceil((n + 1) * coverage) - 1)
+    return float(ratio[k]) / z_of(coverage)
+
+
+def coverage_of(errors: Errors, unc: Uncertainty) -> tuple[float, FloatArray]:
+    """Share of samples within ±z·σ, pooled and per run."""
+    inside = np.abs(errors.err) <= z_of(unc.coverage) * np.sqrt(
+        unc.variance(errors.v, errors.ay, errors.r)
+    )
+    per_run = np.array(
+        [
+            inside[errors.run == i].mean()
+            for i in range(len(errors.names))
+            if (errors.run == i).any()
+        ]
+    )
+    return float(inside.mean()), per_run
+
+
+def calibrate(
+    runs: Sequence[Run],
+    model,
+    meta,
+    *,
+    coverage: float = 0.95,
+    seed: int = 0,  # type: ignore[no-untyped-def]
+) -> tuple[Uncertainty, dict[str, float]]:
+    """The uncertainty model for ``model`` from validation ``runs`` and its figures."""
+    fit_runs, scale_runs = split_runs(runs, 0.5, seed)
+    fit_errors, scale_errors = Errors(fit_runs, model, meta), Errors(scale_runs, model, meta)
+    if len(fit_errors) < 100 or len(scale_errors) < 100:
+        raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
+    coefficients = fit_coefficients(fit_errors)
+    unc = Uncertainty(coefficients, conformal_scale(scale_errors, coefficients, coverage), coverage)
+    pooled, per_run = coverage_of(scale_errors, unc)
+    const = math.sqrt(float(np.mean(fit_errors.err**2)))
+    const_inside = np.abs(scale_errors.err) <= z_of(coverage) * const
+    const_runs = np.array(
+        [const_inside[scale_errors.run == i].mean() for i in np.unique(scale_errors.run)]
+    )
+    report = {
+        "coverage_asked": coverage,
+        "fit_bags": float(len({r.bag for r in fit_runs})),
+        "scale_bags": float(len({r.bag for r in scale_runs})),
+        "coverage_scale_half": pooled,
+        "coverage_per_run_min": float(per_run.min()),
+        "coverage_per_run_p10": float(np.quantile(per_run, 0.1)),
+        "coverage_per_run_median": float(np.median(per_run)),
+        "constant_sigma_coverage_per_run_min": float(const_runs.min()),
+        "constant_sigma_coverage_per_run_median": float(np.median(const_runs)),
+    }
+    return unc, report
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="sideslip-calibrate",
+        description=(
+            "Fit a model's per-sample standard deviation on validation bags (never test "
+            "ones): variance terms by likelihood on half the bags, a conformal scale on the "
+            "other half; writes the model with it (docs/training.md, 'Intervals')."
+        ),
+    )
+    p.add_argument("--model", required=True, help="a .safetensors or a shipped name")
+    p.add_argument("--data", nargs="+", required=True, metavar="DIR", help="validation bags")
+    p.add_argument("--out", required=True, type=Path, metavar="FILE.safetensors")
+    p.add_argument("--coverage", type=float, default=0.95, help="share inside ±z·σ (0.95)")
+    p.add_argument("--seed", type=int, default=0, help="which bags fit and which scale")
+    p.add_argument("--topic-map", type=Path, metavar="FILE", help="see sideslip-train")
+    p.add_argument("--force", action="store_true", help="replace --out")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if not 0.5 <= args.coverage < 1.0:
+            raise DatasetError(f"--coverage must be in [0.5, 1), got {args.coverage}")
+        if args.out.exists() and not args.force:
+            raise DatasetError(f"--out {args.out} exists; pass --force")
+        path = resolve(args.model)
+        model, meta = load_model(path)
+        tensors, _ = read_artifact(path)
+        topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
+        runs, report = load_runs(args.data, step_s=meta.dt_s, topic_map=topic_map)
+        print(str(report), file=sys.stderr)
+        unc, figures = calibrate(runs, model, meta, coverage=args.coverage, seed=args.seed)
+    except (DatasetError, ArtifactError, InitError, TopicMapError, OSError) as err:
+        print(f"sideslip-calibrate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out_meta = replace(
+        meta,
+        uncertainty=unc.to_dict(),
+        metrics={**meta.metrics, "interval_calibration": figures},
+        provenance={**meta.provenance, "calibrated_on": [str(d) for d in args.data]},
+    )
+    write_artifact(args.out, tensors, out_meta, force=args.force)
+    print(
+        f"wrote {args.out}: σ² = {unc.scale:.3f}² · ("
+        + " + ".join(f"{c:.3g}·{t}" for c, t in zip(unc.coefficients, TERMS, strict=True))
+        + f"); {figures['coverage_scale_half']:.3f} of the scale half's samples inside "
+        f"±{z_of(unc.coverage):.2f}σ; per run {figures['coverage_per_run_min']:.3f} (min) to "
+        f"{figures['coverage_per_run_median']:.3f} (median), a constant σ: "
+        f"{figures['constant_sigma_coverage_per_run_min']:.3f} to "
+        f"{figures['constant_sigma_coverage_per_run_median']:.3f}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
