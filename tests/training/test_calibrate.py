@@ -18,7 +18,8 @@ from sideslip_training.calibrate import (
     fit_coefficients,
     main,
 )
-from sideslip_training.cli import evaluate_main, train_main
+from sideslip_training.cli import train_main
+from sideslip_training.evaluate_cli import main as evaluate_main
 
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
 TRUE = np.array([1e-8, 3e-4, 1e-7, 1e-4])

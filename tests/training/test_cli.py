@@ -14,9 +14,10 @@ from sideslip_estimator.estimator import Estimator, EstimatorParams
 from sideslip_msgs_py.artifact import read_artifact
 from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
 from sideslip_msgs_py.sample import SampleArrays
-from sideslip_training.cli import evaluate_main, train_main
+from sideslip_training.cli import train_main
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import predict_run
+from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.export import load_model
 
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]

@@ -25,13 +25,13 @@ from sideslip_msgs_py.artifact import ArtifactError, read_artifact, write_artifa
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.uncertainty import TERMS, Uncertainty, terms
 
+from .cli_errors import EXIT_BAD_INPUT
 from .dataset import DatasetError, Run, load_runs, split_runs
 from .evaluate import predict_run
 from .export import load_model
 from .init_model import InitError, resolve
 
 FloatArray = npt.NDArray[np.float64]
-EXIT_BAD_INPUT = 2
 
 
 class Errors:

@@ -1,6 +1,7 @@
-"""``sideslip-train`` and ``sideslip-evaluate``: bags → trained, evaluated, exported models.
+"""``sideslip-train``: bags → a trained, exported model (the PSO search is in
+:mod:`.search`, ``sideslip-evaluate`` in :mod:`.evaluate_cli`).
 
-Both follow the house CLI pattern: ``--help`` reads like a manual, progress bars on
+The house CLI pattern: ``--help`` reads like a manual, progress bars on
 anything long, ``--out`` never overwritten without ``--force``, and bad input (empty
 data, a feature the bags lack, an existing output) is one line on stderr and exit 2.
 """
@@ -10,40 +11,34 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import shutil
 import sys
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
+from sideslip_msgs_py.artifact import ARCHITECTURES, ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
 from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS, input_set
-from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
-from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
+from sideslip_msgs_py.topic_map import TopicMap
+from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from . import __version__
-from .config import DT_S, PROFILES, WINDOW_S, WINDOW_STEPS, TrainProfile, profile
+from .cli_errors import EXIT_BAD_INPUT, CliError
+from .config import DT_S, PROFILES, WINDOW_S, TrainProfile, profile
 from .dataset import DatasetError, Run, data_digest, load_runs, split_in_time, split_runs
 from .export import export_model, load_model
 from .init_model import InitError, check_fit, load_init
 from .inputs import InputSpec
 from .normalize import Normalizer
+from .search import particle_threads, run_pso
 from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
 from .windows import WindowIndex
-
-EXIT_BAD_INPUT = 2
-
-
-class CliError(Exception):
-    """Bad input a user can fix: printed as one line, exit code 2."""
-
 
 # --- sideslip-train --------------------------------------------------------------------
 
@@ -120,7 +115,7 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--window-steps", type=int, help="window length in samples instead")
     p.add_argument(
         "--model",
-        choices=["lstm", "bilstm"],
+        choices=list(ARCHITECTURES),
         help="architecture (required unless --init gives it)",
     )
     p.add_argument(
@@ -169,7 +164,7 @@ def _train_parser() -> argparse.ArgumentParser:
         help="nominal parameters (YAML) of the car of bags that record none, for inputs "
         "that read the vehicle (simulated bags record theirs)",
     )
-    p.add_argument("--profile", default="quick", choices=["quick", "paper"])
+    p.add_argument("--profile", default="quick", choices=list(PROFILES))
     p.add_argument(
         "--rate-hz",
         type=float,
@@ -205,55 +200,6 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--iterations", type=int, help="override the profile's PSO iterations")
     p.add_argument("--quiet", action="store_true")
     return p
-
-
-@dataclass(frozen=True)
-class ParticleContext:
-    """What every PSO particle's training needs (pickled once per worker / Ray object)."""
-
-    train: WindowIndex
-    val: WindowIndex
-    normalizer: Normalizer
-    base: TrainConfig
-    particle_dir: str
-    threads: int
-
-
-def particle_path(particle_dir: str, params: dict[str, Any]) -> Path:
-    """Where a particle's weights go (internal to the run folder).
-
-    Named by the exact parameters (full float precision): particles clamped onto the
-    same bound share one file, written atomically; the file also holds the fitness and
-    the training summary of the weights it holds.
-    """
-    lr = float(params["log10_learning_rate"]).hex()
-    return Path(particle_dir) / f"lr{lr}_h{int(params['hidden_units'])}.pt"
-
-
-def particle_fitness(params: dict[str, Any], ctx: ParticleContext) -> float:
-    """Train one particle's network; its fitness is the validation MAE [deg] (Sec. 2.2)."""
-    import torch
-
-    torch.set_num_threads(ctx.threads)
-    cfg = replace(
-        ctx.base,
-        learning_rate=10.0 ** float(params["log10_learning_rate"]),
-        hidden_units=int(params["hidden_units"]),
-    )
-    result = train_model(cfg, ctx.train, ctx.val, ctx.normalizer)
-    # Kept so the final model is the best particle's weights as PSO scored them.
-    path = particle_path(ctx.particle_dir, params)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    torch.save(
-        {
-            "state_dict": result.model.state_dict(),
-            "fitness": result.best_val_mae_deg,
-            "summary": {k: v for k, v in result.summary().items()},
-        },
-        tmp,
-    )
-    os.replace(tmp, path)
-    return result.best_val_mae_deg
 
 
 def _check_out(args: argparse.Namespace) -> Path:
@@ -595,7 +541,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         from .pso import PsoError
 
         try:
-            result, pso_info = _run_pso(args, prof, base, train, val, normalizer, run_dir, log)
+            result, pso_info = run_pso(args, prof, base, train, val, normalizer, run_dir, log)
         except PsoError as err:  # e.g. a damaged or foreign pso_state.json on --resume
             print(f"sideslip-train: error: {err}", file=sys.stderr)
             return EXIT_BAD_INPUT
@@ -691,277 +637,3 @@ def _train_one(
         return train_model(cfg, train, val, normalizer, on_epoch=on_epoch, init_state=init_state)
     finally:
         bar.close()
-
-
-def particle_threads(args: argparse.Namespace) -> int:
-    """Torch threads per particle: a Ray task reserves one CPU; a local pool shares the
-    cores. Recorded in config.json: results depend on it (float summation order)."""
-    if args.ray_address:
-        return 1
-    return max(1, (os.cpu_count() or 1) // args.workers)
-
-
-def _run_pso(args, prof, base, train, val, normalizer, run_dir: Path, log):
-    import torch
-    from tqdm import tqdm
-
-    from .parallel import make_evaluator
-    from .pso import PsoState, hyperparameter_space, optimize
-    from .pso_plot import plot_convergence
-
-    settings = replace(prof.pso, seed=args.seed)
-    space = hyperparameter_space(settings)
-    particle_dir = run_dir / "particles"
-    particle_dir.mkdir(exist_ok=True)
-    ctx = ParticleContext(
-        train, val, normalizer, base, str(particle_dir.resolve()), particle_threads(args)
-    )
-    state_path = run_dir / "pso_state.json"
-    state = PsoState.load(state_path) if args.resume else None
-    evaluator = make_evaluator(
-        particle_fitness, ctx, workers=args.workers, ray_address=args.ray_address
-    )
-    bar = tqdm(
-        total=settings.iterations + 1,
-        unit="iteration",
-        disable=args.quiet,
-        file=sys.stderr,
-        desc=f"PSO ({settings.swarm_size} particles)",
-    )
-
-    def on_iteration(s: PsoState) -> None:
-        s.save(state_path)  # atomic: an interruption never leaves half a state
-        (run_dir / "pso_history.json").write_text(s.history.to_json())
-        plot_convergence(s.history, run_dir / "pso_convergence.png")
-        bar.n = s.iteration + 1
-        bar.set_postfix(best_mae_deg=f"{s.global_best_fitness:.4f}")
-        bar.refresh()
-
-    try:
-        result = optimize(evaluator, space, settings, state=state, on_iteration=on_iteration)
-    finally:
-        bar.close()
-        close = getattr(evaluator, "close", None)
-        if close is not None:
-            close()
-    best = result.best_params
-    log(f"PSO best: {best} -> validation MAE {result.best_fitness:.4f} deg")
-    # The best particle's trained weights, exactly as PSO scored them (no retraining).
-    from .model import ModelConfig, SideslipNet
-
-    net = SideslipNet(
-        ModelConfig(
-            base.architecture, len(normalizer.features), int(best["hidden_units"]), base.layers
-        )
-    )
-    saved = torch.load(particle_path(str(particle_dir), best), weights_only=True)
-    net.load_state_dict(saved["state_dict"])
-    net.eval()
-    cfg = replace(
-        base,
-        learning_rate=10.0 ** float(best["log10_learning_rate"]),
-        hidden_units=int(best["hidden_units"]),
-    )
-    summary = saved["summary"]
-    tr = TrainResult(
-        model=net,
-        best_epoch=int(summary["best_epoch"]),
-        best_val_mae_deg=float(saved["fitness"]),
-        history=[EpochRecord(**r) for r in summary["history"]],
-        seconds=float(summary["seconds"]),
-        device=str(summary["device"]),
-        stopped_early=bool(summary["stopped_early"]),
-    )
-    info = {
-        "best_learning_rate": cfg.learning_rate,
-        "best_hidden_units": cfg.hidden_units,
-        "best_val_mae_deg": result.best_fitness,
-        "iterations": settings.iterations,
-        "swarm_size": settings.swarm_size,
-        "trainings": result.evaluations,
-        "settings": asdict(settings),
-        "history_file": "pso_history.json",
-    }
-    return tr, info
-
-
-# --- sideslip-evaluate -----------------------------------------------------------------
-
-
-def _evaluate_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="sideslip-evaluate",
-        description=(
-            "Score exported models beside the baselines (β = 0, the kinematic atan2(Y_v, "
-            "X_v) raw and smoothed, and with --single-track-params / --ukf-params the "
-            "physics filters) on bags with ground truth: MAE, ME, RMSE, R² in degrees per "
-            "bag (scenario) in the paper's Table 5/6 layout, the mean over bags and the "
-            "pooled figure over all samples, β traces and error PDFs. Without --model: "
-            "the baselines only."
-        ),
-    )
-    p.add_argument("--model", nargs="*", default=[], type=Path, metavar="FILE")
-    p.add_argument("--data", nargs="+", required=True, metavar="DIR")
-    p.add_argument("--out", type=Path, help="report folder: table.md, table.csv, figures")
-    p.add_argument(
-        "--topic-map",
-        type=Path,
-        metavar="FILE",
-        help="read bags recorded with other topics/types through this map (YAML: topic and "
-        "field of each channel and of the reference β or velocity; docs/topic-maps.md)",
-    )
-    p.add_argument("--force", action="store_true", help="write into an existing --out")
-    p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
-    p.add_argument("--title", default="", help="heading of the markdown table")
-    p.add_argument(
-        "--vehicle",
-        type=Path,
-        help="nominal parameters (YAML) of the car of bags that record none, for models "
-        "that read the car",
-    )
-    p.add_argument(
-        "--observer-params",
-        type=Path,
-        metavar="UKF.yaml",
-        help="the car's ukf params file for bags that record none, for models that read "
-        "the UKF observer",
-    )
-    p.add_argument(
-        "--single-track-params",
-        metavar="FILE",
-        help="score the single-track Kalman filter with these parameters (a shipped name or "
-        "a YAML from python -m sideslip_sim.single_track VEHICLE)",
-    )
-    p.add_argument(
-        "--ukf-params",
-        metavar="FILE",
-        help="score the UKF with these parameters (a shipped name or a YAML from python -m "
-        "sideslip_sim.ukf_params VEHICLE)",
-    )
-    p.add_argument(
-        "--window-steps",
-        type=int,
-        default=WINDOW_STEPS,
-        help="without --model: the window whose first samples are not scored (default 100)",
-    )
-    return p
-
-
-def evaluate_main(argv: Sequence[str] | None = None) -> int:
-    from .evaluate import (
-        FilterError,
-        evaluate_runs,
-        model_label,
-        plot_band,
-        plot_error_pdfs,
-        plot_traces,
-        pooled,
-        table_csv,
-        table_markdown,
-    )
-
-    args = _evaluate_parser().parse_args(argv)
-    try:
-        if (
-            args.out is not None
-            and args.out.exists()
-            and any(args.out.iterdir())
-            and not args.force
-        ):
-            raise CliError(f"--out {args.out} is not empty; pass --force")
-        if args.smoothing < 1:
-            raise CliError(f"--smoothing must be >= 1, got {args.smoothing}")
-        models = []
-        for path in args.model:
-            net, meta = load_model(path)
-            models.append((model_label(meta), net, meta))
-        names = [m[0] for m in models]
-        if len(set(names)) != len(names):  # two LSTMs: tell them apart by file
-            stems = [p.stem for p in args.model]
-            tags = stems if len(set(stems)) == len(stems) else [p.parent.name for p in args.model]
-            models = [
-                (f"{n} ({tag})", net, meta)
-                for (n, net, meta), tag in zip(models, tags, strict=True)
-            ]
-        windows = {meta.window_steps for _, _, meta in models} or {args.window_steps}
-        if len(windows) != 1:
-            raise CliError(f"models have different window lengths: {sorted(windows)}")
-        if min(windows) < 1:
-            raise CliError(f"--window-steps must be >= 1, got {args.window_steps}")
-        steps = {meta.dt_s for _, _, meta in models} or {DT_S}
-        if len(steps) != 1:
-            rates = ", ".join(f"{1 / s:g} Hz" for s in sorted(steps))
-            raise CliError(f"models run at different rates ({rates}): score them separately")
-        # Bags at another rate are resampled to the models' step (or refused), never
-        # scored at the wrong rate; the report printed below says which.
-        topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
-        runs, report = load_runs(args.data, step_s=steps.pop(), topic_map=topic_map)
-        print(str(report), file=sys.stderr)
-        window = next(iter(windows))
-        short = [r.name for r in runs if len(r.samples) < window]
-        if short:
-            print(f"skipped (shorter than {window} samples): {', '.join(short)}", file=sys.stderr)
-            runs = [r for r in runs if len(r.samples) >= window]
-        if not runs:
-            raise CliError(f"no run of {args.data} holds a full window of {window} samples")
-    except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
-        print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    filters = {
-        name: params
-        for name, params in (
-            ("single_track", args.single_track_params),
-            ("ukf", args.ukf_params),
-        )
-        if params
-    }
-    try:
-        traces = evaluate_runs(
-            runs,
-            models,
-            window_steps=windows.pop(),
-            smoothing_steps=args.smoothing,
-            vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
-            observer_params_file=str(args.observer_params) if args.observer_params else None,
-            filters=filters,
-        )
-    except (DatasetError, VehicleDescriptionError, FilterError) as err:
-        print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    md = table_markdown(traces, args.title)
-    print(md)
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "table.md").write_text(md)
-        (args.out / "table.csv").write_text(table_csv(traces))
-        plot_traces(traces, args.out)
-        plot_error_pdfs(traces, args.out)
-        for i, t in enumerate(tr for tr in traces if tr.sigma_rad is not None):
-            plot_band(t, args.out / f"band_{t.scenario}_{i}.png")
-
-        def strict(m) -> dict:  # strict JSON: an undefined metric (R² of a straight) is null
-            return {
-                k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in asdict(m).items()
-            }
-
-        summary = {
-            "models": [str(p) for p in args.model],
-            "data": args.data,
-            "smoothing_steps": args.smoothing,
-            "filters": filters,
-            "results": [
-                {
-                    "scenario": t.scenario,
-                    "estimator": t.estimator,
-                    **strict(t.metrics),
-                    **({} if t.sigma_rad is None else {"coverage_95": t.coverage}),
-                }
-                for t in traces
-            ],
-            "pooled": [{"estimator": n, **strict(m)} for n, m in pooled(traces).items()],
-        }
-        (args.out / "metrics.json").write_text(
-            json.dumps(summary, indent=2, allow_nan=False) + "\n"
-        )
-    return 0

@@ -1,0 +1,203 @@
+"""``sideslip-evaluate``: score models beside the baselines on bags with ground truth.
+
+The house CLI pattern: ``--help`` reads like a manual, ``--out`` never overwritten
+without ``--force``, bad input one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+
+from sideslip_msgs_py.artifact import ArtifactError
+from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
+from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
+
+from .cli_errors import EXIT_BAD_INPUT, CliError
+from .config import DT_S, WINDOW_STEPS
+from .dataset import DatasetError, load_runs
+from .export import load_model
+
+
+def _evaluate_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="sideslip-evaluate",
+        description=(
+            "Score exported models beside the baselines (β = 0, the kinematic atan2(Y_v, "
+            "X_v) raw and smoothed, and with --single-track-params / --ukf-params the "
+            "physics filters) on bags with ground truth: MAE, ME, RMSE, R² in degrees per "
+            "bag (scenario) in the paper's Table 5/6 layout, the mean over bags and the "
+            "pooled figure over all samples, β traces and error PDFs. Without --model: "
+            "the baselines only."
+        ),
+    )
+    p.add_argument("--model", nargs="*", default=[], type=Path, metavar="FILE")
+    p.add_argument("--data", nargs="+", required=True, metavar="DIR")
+    p.add_argument("--out", type=Path, help="report folder: table.md, table.csv, figures")
+    p.add_argument(
+        "--topic-map",
+        type=Path,
+        metavar="FILE",
+        help="read bags recorded with other topics/types through this map (YAML: topic and "
+        "field of each channel and of the reference β or velocity; docs/topic-maps.md)",
+    )
+    p.add_argument("--force", action="store_true", help="write into an existing --out")
+    p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
+    p.add_argument("--title", default="", help="heading of the markdown table")
+    p.add_argument(
+        "--vehicle",
+        type=Path,
+        help="nominal parameters (YAML) of the car of bags that record none, for models "
+        "that read the car",
+    )
+    p.add_argument(
+        "--observer-params",
+        type=Path,
+        metavar="UKF.yaml",
+        help="the car's ukf params file for bags that record none, for models that read "
+        "the UKF observer",
+    )
+    p.add_argument(
+        "--single-track-params",
+        metavar="FILE",
+        help="score the single-track Kalman filter with these parameters (a shipped name or "
+        "a YAML from python -m sideslip_sim.single_track VEHICLE)",
+    )
+    p.add_argument(
+        "--ukf-params",
+        metavar="FILE",
+        help="score the UKF with these parameters (a shipped name or a YAML from python -m "
+        "sideslip_sim.ukf_params VEHICLE)",
+    )
+    p.add_argument(
+        "--window-steps",
+        type=int,
+        default=WINDOW_STEPS,
+        help="without --model: the window whose first samples are not scored (default 100)",
+    )
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from .evaluate import (
+        FilterError,
+        evaluate_runs,
+        model_label,
+        plot_band,
+        plot_error_pdfs,
+        plot_traces,
+        pooled,
+        table_csv,
+        table_markdown,
+    )
+
+    args = _evaluate_parser().parse_args(argv)
+    try:
+        if (
+            args.out is not None
+            and args.out.exists()
+            and any(args.out.iterdir())
+            and not args.force
+        ):
+            raise CliError(f"--out {args.out} is not empty; pass --force")
+        if args.smoothing < 1:
+            raise CliError(f"--smoothing must be >= 1, got {args.smoothing}")
+        models = []
+        for path in args.model:
+            net, meta = load_model(path)
+            models.append((model_label(meta), net, meta))
+        names = [m[0] for m in models]
+        if len(set(names)) != len(names):  # two LSTMs: tell them apart by file
+            stems = [p.stem for p in args.model]
+            tags = stems if len(set(stems)) == len(stems) else [p.parent.name for p in args.model]
+            models = [
+                (f"{n} ({tag})", net, meta)
+                for (n, net, meta), tag in zip(models, tags, strict=True)
+            ]
+        windows = {meta.window_steps for _, _, meta in models} or {args.window_steps}
+        if len(windows) != 1:
+            raise CliError(f"models have different window lengths: {sorted(windows)}")
+        if min(windows) < 1:
+            raise CliError(f"--window-steps must be >= 1, got {args.window_steps}")
+        steps = {meta.dt_s for _, _, meta in models} or {DT_S}
+        if len(steps) != 1:
+            rates = ", ".join(f"{1 / s:g} Hz" for s in sorted(steps))
+            raise CliError(f"models run at different rates ({rates}): score them separately")
+        # Bags at another rate are resampled to the models' step (or refused), never
+        # scored at the wrong rate; the report printed below says which.
+        topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
+        runs, report = load_runs(args.data, step_s=steps.pop(), topic_map=topic_map)
+        print(str(report), file=sys.stderr)
+        window = next(iter(windows))
+        short = [r.name for r in runs if len(r.samples) < window]
+        if short:
+            print(f"skipped (shorter than {window} samples): {', '.join(short)}", file=sys.stderr)
+            runs = [r for r in runs if len(r.samples) >= window]
+        if not runs:
+            raise CliError(f"no run of {args.data} holds a full window of {window} samples")
+    except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
+        print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    filters = {
+        name: params
+        for name, params in (
+            ("single_track", args.single_track_params),
+            ("ukf", args.ukf_params),
+        )
+        if params
+    }
+    try:
+        traces = evaluate_runs(
+            runs,
+            models,
+            window_steps=windows.pop(),
+            smoothing_steps=args.smoothing,
+            vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
+            observer_params_file=str(args.observer_params) if args.observer_params else None,
+            filters=filters,
+        )
+    except (DatasetError, VehicleDescriptionError, FilterError) as err:
+        print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    md = table_markdown(traces, args.title)
+    print(md)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "table.md").write_text(md)
+        (args.out / "table.csv").write_text(table_csv(traces))
+        plot_traces(traces, args.out)
+        plot_error_pdfs(traces, args.out)
+        for i, t in enumerate(tr for tr in traces if tr.sigma_rad is not None):
+            plot_band(t, args.out / f"band_{t.scenario}_{i}.png")
+
+        def strict(m) -> dict:  # strict JSON: an undefined metric (R² of a straight) is null
+            return {
+                k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in asdict(m).items()
+            }
+
+        summary = {
+            "models": [str(p) for p in args.model],
+            "data": args.data,
+            "smoothing_steps": args.smoothing,
+            "filters": filters,
+            "results": [
+                {
+                    "scenario": t.scenario,
+                    "estimator": t.estimator,
+                    **strict(t.metrics),
+                    **({} if t.sigma_rad is None else {"coverage_95": t.coverage}),
+                }
+                for t in traces
+            ],
+            "pooled": [{"estimator": n, **strict(m)} for n, m in pooled(traces).items()],
+        }
+        (args.out / "metrics.json").write_text(
+            json.dumps(summary, indent=2, allow_nan=False) + "\n"
+        )
+    return 0
