@@ -91,6 +91,8 @@ class FleetRanges:
     # The paper's tyre is a 205/60R15 (F_z0 = 4000 N): its nominal load is scaled so that
     # the static wheel load is this fraction of the nominal (passenger-car sizing).
     wheel_load_over_nominal: tuple[float, float] = (0.7, 1.0)
+    layout: str | None = None
+    """fwd, rwd or awd for every car; None: drawn (45 / 25 / 30 %)."""
 
 
 @dataclass(frozen=True)
@@ -201,7 +203,7 @@ class CarDesign:
 
 def draw_design(rng: np.random.Generator, ranges: FleetRanges) -> CarDesign:
     """One car's primary choices from the ranges."""
-    layout = str(rng.choice(["fwd", "rwd", "awd"], p=[0.45, 0.25, 0.30]))
+    layout = ranges.layout or str(rng.choice(["fwd", "rwd", "awd"], p=[0.45, 0.25, 0.30]))
     # Front-drive cars carry the engine over the front axle; rear-drive ones are the
     # balanced ones: the layout shifts the front weight fraction within the range.
     lo, hi = ranges.front_weight_fraction
@@ -360,6 +362,41 @@ def design_vehicle(design: CarDesign, tire: TireParams, tire_file: str, name: st
     rear_scale = float(np.clip(rear_scale, *TIRE_SCALE_RANGE))
     rounded["tire_cornering_stiffness_scale_rear"] = round(rear_scale, 6)
     return _vehicle(rounded, name)
+
+
+def centred_ranges(
+    *,
+    mass_kg: float,
+    wheelbase_m: float,
+    front_weight_fraction: float,
+    cg_height_m: float,
+    track_m: float,
+    stl_per_road_wheel_angle_m_per_rad: float,
+    tire_rolling_radius_m: float,
+    layout: str | None = None,
+) -> FleetRanges:
+    """Ranges around one car's nominal parameters (what an owner can look up: mass ± 5 %,
+    wheelbase ± 1 %, weight split ± 0.02, CG height ± 0.05 m, track ± 0.02 m, steering
+    ratio ± 3 %, tyre radius ± 0.01 m); everything else (inertia, tyres, suspension,
+    understeer) keeps the fleet's spread, as the uncertainty about the car."""
+    if layout is not None and layout not in ("fwd", "rwd", "awd"):
+        raise FleetError(f"layout must be fwd, rwd or awd, got {layout!r}")
+
+    def around(value: float, half: float) -> tuple[float, float]:
+        return (value - half, value + half)
+
+    return FleetRanges(
+        mass_kg=around(mass_kg, 0.05 * mass_kg),
+        wheelbase_m=around(wheelbase_m, 0.01 * wheelbase_m),
+        front_weight_fraction=around(front_weight_fraction, 0.02),
+        cg_height_m=around(cg_height_m, 0.05),
+        track_m=around(track_m, 0.02),
+        stl_per_road_wheel_angle_m_per_rad=around(
+            stl_per_road_wheel_angle_m_per_rad, 0.03 * stl_per_road_wheel_angle_m_per_rad
+        ),
+        tire_rolling_radius_m=around(tire_rolling_radius_m, 0.01),
+        layout=layout,
+    )
 
 
 def _vehicle(values: dict[str, object], name: str) -> VehicleParams:

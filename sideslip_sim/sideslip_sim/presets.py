@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,6 +219,13 @@ def fleet(count: int, seed: int) -> list[VehicleRun]:
     cars = sample_fleet(
         math.ceil(count / FLEET_RUNS_PER_CAR), seed, exclude_digests=held_out_digests()
     ).vehicles
+    return fleet_runs(cars, count, seed)
+
+
+def fleet_runs(cars: Sequence[VehicleParams], count: int, seed: int) -> list[VehicleRun]:
+    """The fleet preset's runs on given cars (four per car, in order; see :func:`fleet`)."""
+    if count > FLEET_RUNS_PER_CAR * len(cars):
+        raise PresetError(f"fleet: {count} runs need {math.ceil(count / 4)} cars")
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xF1EE7, 1])
     runs = []
     for i in range(count):

@@ -1,0 +1,88 @@
+"""sideslip-fit: a car's description → a fleet around it → a fitted, tested model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.vehicle_description import VehicleDescription
+from sideslip_sim.fleet import centred_ranges, sample_fleet
+from sideslip_training.fit import Description, main
+
+SEDAN = {
+    "name": "my_sedan",
+    "mass_kg": 1550.0,
+    "wheelbase_m": 2.85,
+    "cg_to_front_axle_m": 1.368,
+    "cg_height_m": 0.54,
+    "track_m": 1.57,
+    "stl_per_road_wheel_angle_m_per_rad": 1.7,
+    "tire_rolling_radius_m": 0.32,
+    "drive_layout": "rwd",
+}
+
+
+def test_the_fleet_around_a_car_keeps_what_its_owner_gave() -> None:
+    n = VehicleDescription.from_mapping({k: v for k, v in SEDAN.items() if k != "drive_layout"})
+    ranges = centred_ranges(
+        mass_kg=n.mass_kg,
+        wheelbase_m=n.wheelbase_m,
+        front_weight_fraction=n.cg_to_rear_axle_m / n.wheelbase_m,
+        cg_height_m=n.cg_height_m,
+        track_m=n.track_m,
+        stl_per_road_wheel_angle_m_per_rad=n.stl_per_road_wheel_angle_m_per_rad,
+        tire_rolling_radius_m=n.tire_rolling_radius_m,
+        layout="rwd",
+    )
+    cars = sample_fleet(6, 3, prefix="t", ranges=ranges).vehicles
+    for car in cars:
+        d = VehicleDescription.from_mapping(
+            {k: v for k, v in car.__dict__.items() if k != "source_path"}
+        )
+        assert abs(d.mass_kg / n.mass_kg - 1) <= 0.05 + 1e-9
+        assert abs(d.wheelbase_m / n.wheelbase_m - 1) <= 0.01 + 1e-9
+        assert abs(d.front_weight_fraction - n.front_weight_fraction) <= 0.02 + 1e-9
+        assert car.drive_layout == "rwd"
+    # What the owner cannot know is spread: the cars are not copies of one another.
+    assert len({round(c.yaw_inertia_kgm2, 3) for c in cars}) == len(cars)
+
+
+def test_a_fit_from_a_description_writes_a_tested_model_and_its_card(
+    tmp_path: Path, capsys
+) -> None:
+    desc = tmp_path / "sedan.yaml"
+    desc.write_text(yaml.safe_dump(SEDAN))
+    out = tmp_path / "sedan.safetensors"
+    args = ["--vehicle", str(desc), "--out", str(out), "--cars", "3", "--test-runs", "2"]
+    args += ["--device", "cpu", "--quiet"]
+    assert main(args) == 0
+    meta = read_artifact(out)[1]
+    assert meta.provenance["init"] == "fleet_lstm_paper.safetensors"
+    card = out.with_suffix(".md").read_text()
+    assert "my_sedan" in card and "| β = 0 |" in card and "(sedan)" in card
+    assert "drive layout: rwd" in card
+    # Interrupted after the data: the same command picks the data up again.
+    out.unlink()
+    capsys.readouterr()
+    assert main([a for a in args if a != "--quiet"]) == 0
+    assert "already generated (resumed)" in capsys.readouterr().err
+    # Refusals: an existing --out, a description that is not one.
+    assert main(args) == 2
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({**SEDAN, "drive_layout": "6wd"}))
+    assert main(["--vehicle", str(bad), "--out", str(tmp_path / "x.safetensors")]) == 2
+    assert "drive_layout" in capsys.readouterr().err
+
+
+def test_the_description_names_a_missing_key(tmp_path: Path) -> None:
+    from sideslip_training.cli_errors import CliError
+
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump({k: v for k, v in SEDAN.items() if k != "track_m"}))
+    with pytest.raises(CliError, match="track_m"):
+        Description.load(path)
+    assert np.isfinite(1.0)
