@@ -45,9 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sideslip_sim.simulate import load_tire
 from sideslip_sim.single_track import SingleTrack
-from sideslip_sim.tire import DEFAULT_TIR, TireParams
+from sideslip_sim.tire import DEFAULT_TIR, TireParams, load_tire
 from sideslip_sim.vehicle import (
     GRAVITY_MPS2,
     TIRE_SCALE_RANGE,

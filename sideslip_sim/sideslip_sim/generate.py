@@ -41,8 +41,9 @@ from sideslip_sim.presets import (
     vehicle_preset,
 )
 from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
-from sideslip_sim.simulate import DT_S, SimResult, SimulationError, load_tire, simulate
+from sideslip_sim.simulate import DT_S, SimResult, SimulationError, simulate
 from sideslip_sim.tir import TirError
+from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
 
 INDEX_FILE = "index.json"

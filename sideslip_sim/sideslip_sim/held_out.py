@@ -17,8 +17,7 @@ from __future__ import annotations
 import functools
 
 from sideslip_sim.fleet import CarDesign, design_vehicle, vehicle_digest
-from sideslip_sim.simulate import load_tire
-from sideslip_sim.tire import DEFAULT_TIR
+from sideslip_sim.tire import DEFAULT_TIR, load_tire
 from sideslip_sim.vehicle import VehicleParams
 
 HELD_OUT_MU = (1.0, 0.7, 0.4)

@@ -32,8 +32,8 @@ import numpy as np
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import HELD_OUT_MU, held_out_digests, held_out_vehicles
 from sideslip_sim.maneuvers import Maneuver, auto_stl_amplitude
-from sideslip_sim.simulate import load_tire
 from sideslip_sim.single_track import SingleTrack
+from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import VehicleParams
 
 PRESETS = ("paper-train", "paper-test", "randomized")

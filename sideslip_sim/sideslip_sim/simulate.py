@@ -6,10 +6,8 @@ hundreds of times faster than real time on one core; `simulate` is the Python en
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -19,7 +17,7 @@ from sideslip_sim.axle_tires import axle_tires
 from sideslip_sim.driver import DriverParams, pure_pursuit
 from sideslip_sim.maneuvers import Maneuver, build_program, with_payload
 from sideslip_sim.single_track import SingleTrack
-from sideslip_sim.tire import TireParams
+from sideslip_sim.tire import TireParams, load_tire
 from sideslip_sim.vehicle import VehicleParams
 
 DT_S = 0.0025  # 400 Hz, the paper's step
@@ -179,12 +177,6 @@ def _run(
         carry[2] = handover
         carry[3] = handover_left
     return -1
-
-
-@functools.lru_cache(maxsize=16)
-def load_tire(path: str) -> TireParams:
-    """Parsed tyre files are cached: a batch reads each file once."""
-    return TireParams.from_tir(Path(path))
 
 
 @dataclass(frozen=True)

@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import yaml
 
-    from sideslip_sim.simulate import load_tire
+    from sideslip_sim.tire import load_tire
     from sideslip_sim.vehicle import VehicleFileError, load_vehicle
 
     parser = argparse.ArgumentParser(

@@ -45,6 +45,7 @@ to one must be made to both.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +66,7 @@ __all__ = [
     "combined_forces4",
     "cornering_stiffness",
     "friction_coefficients",
+    "load_tire",
     "longitudinal_stiffness",
     "relaxation_lengths",
     "rolling_resistance_coefficient",
@@ -706,3 +708,9 @@ def rolling_resistance_coefficient(coef):
     QSY2 (dependence on Fx) is parsed but not applied.
     """
     return coef[I_QSY1] * coef[I_LMY]
+
+
+@functools.lru_cache(maxsize=16)
+def load_tire(path: str) -> TireParams:
+    """A tyre file, parsed once per process (a batch reads each file once)."""
+    return TireParams.from_tir(Path(path))

@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     import yaml
 
     from sideslip_sim.axle_tires import axle_tires
-    from sideslip_sim.simulate import load_tire
+    from sideslip_sim.tire import load_tire
     from sideslip_sim.vehicle import VehicleFileError, load_vehicle
 
     parser = argparse.ArgumentParser(

@@ -30,8 +30,9 @@ from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
 from sideslip_msgs_py.sample import SampleArrays
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.sensors import exact_samples
-from sideslip_sim.simulate import load_tire, simulate
+from sideslip_sim.simulate import simulate
 from sideslip_sim.single_track import estimator_parameters
+from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import load_vehicle, shipped_vehicles
 
 STEP_NS = 2_500_000

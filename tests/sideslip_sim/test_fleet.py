@@ -25,9 +25,9 @@ from sideslip_sim.generate import main
 from sideslip_sim.held_out import HELD_OUT_NAMES, held_out_digests, held_out_vehicles
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import fleet, held_out, paper_train, randomized
-from sideslip_sim.simulate import load_tire, prepare, simulate
+from sideslip_sim.simulate import prepare, simulate
 from sideslip_sim.single_track import SingleTrack
-from sideslip_sim.tire import DEFAULT_TIR
+from sideslip_sim.tire import DEFAULT_TIR, load_tire
 from sideslip_sim.vehicle import load_vehicle, vehicle_from_dict
 
 TIRE = load_tire(str(DEFAULT_TIR))

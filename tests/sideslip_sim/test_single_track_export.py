@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from sideslip_estimator.backends import SingleTrackParams, create_backend
-from sideslip_sim.simulate import load_tire
 from sideslip_sim.single_track import SingleTrack, estimator_parameters, main
+from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import load_vehicle
 
 

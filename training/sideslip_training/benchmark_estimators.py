@@ -42,6 +42,7 @@ from sideslip_msgs_py.sample import SampleArrays
 
 from .benchmark_data import PROG, BenchmarkError, HeldOutRun
 from .config import WINDOW_STEPS
+from .physics_params import nominal_parameters, params_yaml, steering_limit_m
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -227,34 +228,6 @@ def physics_filters(
     return filters, notes
 
 
-def nominal_parameters(backend: str, vehicle: Mapping[str, Any]) -> dict[str, Any]:
-    """The ``params_file`` contents of ``backend`` for a car (its true nominal values)."""
-    from sideslip_sim.simulate import load_tire
-    from sideslip_sim.vehicle import vehicle_from_dict
-
-    car = vehicle_from_dict(dict(vehicle))
-    tire = load_tire(str(car.tire_path()))
-    if backend == "single_track":
-        from sideslip_sim.single_track import estimator_parameters
-
-        return estimator_parameters(car, tire)
-    if backend == "ukf":
-        from sideslip_sim.axle_tires import axle_tires
-        from sideslip_sim.ukf_params import ukf_parameters
-
-        front, rear = axle_tires(car, tire)
-        return ukf_parameters(car, front, rear)
-    raise BenchmarkError(f"no nominal parameters for back-end {backend!r}")
-
-
-def params_yaml(backend: str, vehicle: str, values: Mapping[str, Any]) -> str:
-    """A back-end's ``params_file``: ``values`` as YAML under a line naming the car."""
-    return (
-        f"# {backend} parameters of {vehicle}: its true nominal values, written by "
-        f"{PROG}\n" + yaml.safe_dump(dict(values), sort_keys=False)
-    )
-
-
 def prepare_physics(
     filters: list[PhysicsFilter], runs: Sequence[HeldOutRun], notes: list[str]
 ) -> dict[tuple[str, str], dict[str, Any]]:
@@ -271,7 +244,7 @@ def prepare_physics(
                 params[(f.label, name)] = nominal_parameters(f.backend, vehicle)
                 with tempfile.TemporaryDirectory() as tmp:
                     path = Path(tmp) / f"{name}.yaml"
-                    path.write_text(params_yaml(f.backend, name, params[(f.label, name)]))
+                    path.write_text(params_yaml(f.backend, name, params[(f.label, name)], PROG))
                     create_backend(f.backend, {**f.values, "params_file": str(path)}, WINDOW_STEPS)
         except ImportError as err:
             notes.append(f"{f.label}: skipped, {err}")
@@ -289,21 +262,8 @@ def write_params_files(
     for (label, vehicle), values in params.items():
         backend = PHYSICS_BACKENDS[label]
         paths[(label, vehicle)] = folder / f"{vehicle}.{backend}.yaml"
-        paths[(label, vehicle)].write_text(params_yaml(backend, vehicle, values))
+        paths[(label, vehicle)].write_text(params_yaml(backend, vehicle, values, PROG))
     return paths
-
-
-def steering_limit_m(vehicle: Mapping[str, Any]) -> float:
-    """The estimator's ``limits.stl_m`` for a car [m]: 1.5 × its STL at full lock, and
-    never below the node's default. The default (0.5 m) is below the full lock of the
-    held-out cars (STL per road-wheel angle 1.3-2.0 m/rad), whose path-following runs
-    reach it: the node would reject those samples as sensor faults."""
-    from sideslip_estimator.inputs import InputLimits
-
-    full_lock_m = float(vehicle["stl_per_road_wheel_angle_m_per_rad"]) * float(
-        vehicle["max_road_wheel_angle_rad"]
-    )
-    return max(InputLimits().stl_m, 1.5 * full_lock_m)
 
 
 def replay_filter(

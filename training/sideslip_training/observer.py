@@ -80,7 +80,7 @@ def params_of_vehicle(vehicle: Mapping[str, Any]) -> dict[str, Any]:
 def _params_of_car(vehicle_json: str) -> dict[str, Any]:
     # One Magic Formula fit per car (scipy, tens of ms), not one per run and call: the
     # trainer asks for a run's columns once for its inputs and once for its prior.
-    from .benchmark_estimators import nominal_parameters
+    from .physics_params import nominal_parameters
 
     return nominal_parameters(BACKEND, json.loads(vehicle_json))
 
@@ -90,7 +90,7 @@ def run_params(run: Run, params_file: str | None) -> tuple[dict[str, Any], float
     vehicle record, else from ``params_file`` (a recording of a real car)."""
     from sideslip_estimator.inputs import InputLimits
 
-    from .benchmark_estimators import steering_limit_m
+    from .physics_params import steering_limit_m
 
     vehicle = run.run_metadata.get("vehicle")
     if isinstance(vehicle, Mapping):
@@ -131,11 +131,15 @@ def compute(
     from sideslip_estimator.inputs import InputLimits
     from sideslip_estimator.replay import replay, replay_columns
 
-    from .benchmark_estimators import params_yaml
+    from .physics_params import params_yaml
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "observer.ukf.yaml"
-        path.write_text(params_yaml(BACKEND, str(params.get("name", "car")), params))
+        path.write_text(
+            params_yaml(
+                BACKEND, str(params.get("name", "car")), params, "sideslip-train (UKF observer)"
+            )
+        )
         ukf = create_backend(BACKEND, {**values, "params_file": str(path)}, WINDOW_STEPS)
     recorder = Recorder(ukf)
     est = Estimator(
