@@ -52,13 +52,13 @@ from .benchmark_estimators import (
     prepare_physics,
     read_physics_params,
     run_physics,
-    steering_limit_m,
     write_params_files,
 )
 from .benchmark_figures import plot_all
 from .benchmark_report import cell_table, readme_markdown, verdict_markdown
 from .benchmark_scores import collect, results_json, summarize
 from .config import WINDOW_STEPS
+from .physics_params import steering_limit_m
 
 EXIT_BAD_INPUT: Final = 2
 EXIT_RUN_FAILED: Final = 1
