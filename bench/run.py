@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         inference_main(["--json", str(tmp)])
         results["inference"] = json.loads(tmp.read_text())
     if "soak" in args.sections:
-        from soak import run as run_soak  # imports rclpy: only when asked for
+        from tools.soak import run as run_soak  # imports rclpy: only when asked for
 
         results["soak"] = run_soak(args.soak_seconds, load=2)
     for section in ("simulator", "ros_runtime", "training", "inference", "soak"):

@@ -46,9 +46,11 @@ PERIOD_NS = 2_500_000
 
 
 class Listener:
-    """Receive times and stamps of the measured topics, in this process."""
+    """Receive times and stamps of the measured topics, in this process (``imu=False``:
+    the estimator's outputs only, for a run where this process must load the machine
+    as little as it can)."""
 
-    def __init__(self, domain_id: int) -> None:
+    def __init__(self, domain_id: int, *, imu: bool = True) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node("bench_listener", context=self.context)
@@ -56,7 +58,8 @@ class Listener:
         self.twist: list[tuple[int, int]] = []
         self.status: list[Any] = []
         self.recording = False
-        self.node.create_subscription(Imu, topics.IMU, self._on_imu, profile_for(topics.IMU))
+        if imu:
+            self.node.create_subscription(Imu, topics.IMU, self._on_imu, profile_for(topics.IMU))
         self.node.create_subscription(
             TwistWithCovarianceStamped,
             topics.SIDESLIP_TWIST,

@@ -19,7 +19,7 @@ Measured:
   wall time it is due), so sensor time → estimate in another process, under load;
 * memory: the estimator's RSS every 5 s; growth = last − the sample at ``--warmup-s``.
 
-Run: ``python bench/soak.py --seconds 600 --load 2 --json docs/evaluation/soak/soak.json``
+Run: ``python bench/tools/soak.py --seconds 600 --load 2 --json docs/evaluation/soak/soak.json``
 (``make bench`` runs a short one only with ``--sections soak``).
 """
 
@@ -33,74 +33,22 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import TwistWithCovarianceStamped
-from machine import cpu_model, git_commit
-from rclpy.context import Context
-from tools.ros_runtime import BIN, _percentiles, _stop
 
-from sideslip_msgs_py import topics
-from sideslip_msgs_py.messages import stamp_ns
-from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.nodes.runtime import make_executor
+# Run as a script (python bench/tools/soak.py) bench/ must be on the path, as it is for
+# bench/run.py, which imports this module.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from machine import cpu_model, git_commit
+
+from tools.ros_runtime import BIN, Listener, _percentiles, _stop
 
 RUN_BOUNDARY_S = 0.4
 GAP_LIMIT_S = 0.010
-
-
-class OutputListener:
-    """Receive time and stamp of every /sideslip/twist, and the latest status values."""
-
-    def __init__(self, domain_id: int) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node("soak_listener", context=self.context)
-        self.twist: list[tuple[int, int]] = []
-        self.status: dict[str, str] = {}
-        self.status_count = 0
-        self.node.create_subscription(
-            TwistWithCovarianceStamped,
-            topics.SIDESLIP_TWIST,
-            self._on_twist,
-            profile_for(topics.SIDESLIP_TWIST),
-        )
-        self.node.create_subscription(
-            DiagnosticArray,
-            topics.SIDESLIP_STATUS,
-            self._on_status,
-            profile_for(topics.SIDESLIP_STATUS),
-        )
-        self.executor = make_executor(self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # shutdown races end the thread
-                return
-
-    def _on_twist(self, msg: TwistWithCovarianceStamped) -> None:
-        self.twist.append((time.time_ns(), stamp_ns(msg)))
-
-    def _on_status(self, msg: DiagnosticArray) -> None:
-        self.status = {kv.key: kv.value for kv in msg.status[0].values}
-        self.status_count += 1
-
-    def close(self) -> None:
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
-        self._thread.join(2.0)
 
 
 def _rss_kib(pid: int) -> int:
@@ -128,7 +76,8 @@ def run(
     )
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(load)]
-    listener = OutputListener(domain_id)
+    listener = Listener(domain_id, imu=False)
+    listener.recording = True
     sim_log = tempfile.TemporaryFile()
     est_log = tempfile.TemporaryFile()
     estimator = subprocess.Popen(
@@ -168,11 +117,11 @@ def run(
             time.sleep(min(5.0, max(0.0, seconds - elapsed)))
         sim_code = _stop(sim)
         # The estimator has the last messages; its status (2 Hz) then counts them all.
-        seen = listener.status_count
+        seen = len(listener.status)
         wait_until = time.monotonic() + 5.0
-        while listener.status_count < seen + 3 and time.monotonic() < wait_until:
+        while len(listener.status) < seen + 3 and time.monotonic() < wait_until:
             time.sleep(0.1)
-        final = dict(listener.status)
+        final = {kv.key: kv.value for kv in listener.status[-1].status[0].values}
     finally:
         for proc in (sim, estimator):
             _stop(proc)
@@ -248,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     result = run(args.seconds, args.load, warmup_s=min(args.warmup_s, args.seconds / 2))
-    result["command"] = "python bench/soak.py " + " ".join(argv or sys.argv[1:])
+    result["command"] = "python bench/tools/soak.py " + " ".join(argv or sys.argv[1:])
     text = json.dumps(result, indent=2)
     print(text)
     if args.json:
