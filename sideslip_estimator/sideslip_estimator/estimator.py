@@ -29,6 +29,7 @@ from typing import Final
 
 from sideslip_msgs_py.features import CHANNELS
 from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
+from sideslip_msgs_py.timing import RATE_HZ, WINDOW_STEPS
 
 from .backends import Backend, Estimate
 from .inputs import (
@@ -44,7 +45,7 @@ from .stamps import StampLine
 from .window import SampleWindow
 
 _MAX_BETA_RAD: Final = math.radians(80.0)
-CONTRACT_RATE_HZ: Final = 400.0
+CONTRACT_RATE_HZ: Final = RATE_HZ
 RATE_TOLERANCE: Final = 0.1
 """A measured IMU rate further than this (relative) from the model's is another rate."""
 
@@ -53,7 +54,7 @@ RATE_TOLERANCE: Final = 0.1
 class EstimatorParams:
     """Runtime rules shared by every back-end (units in the names)."""
 
-    window_steps: int = 100
+    window_steps: int = WINDOW_STEPS
     max_input_age_s: float = 0.05
     max_gap_s: float = 0.1
     min_speed_mps: float = 1.0

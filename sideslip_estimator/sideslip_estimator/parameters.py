@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.timing import WINDOW_STEPS
 
 from .estimator import EstimatorParams
 from .inputs import InputLimits
@@ -17,7 +18,7 @@ PARAMETERS = (
         "the shipped fleet model), kinematic (atan2(Y_v, X_v)), single_track "
         "(bicycle-model Kalman filter) or ukf (unscented Kalman filter, Magic Formula tyres).",
     ),
-    ParameterSpec("window_steps", 100, "Sliding-window length in samples (100 = 250 ms)."),
+    ParameterSpec("window_steps", WINDOW_STEPS, "Sliding-window length in samples (100 = 250 ms)."),
     ParameterSpec(
         "topic_map_file",
         "",

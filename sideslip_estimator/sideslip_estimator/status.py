@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
+from sideslip_msgs_py.timing import RATE_HZ
 
 from .estimator import EstimatorStats
 
@@ -64,7 +65,7 @@ class Observation:
     """One line per input topic whose messages carry another frame than the contract's."""
     input_rate_hz: float | None = None
     """Measured IMU rate (None until measured)."""
-    expected_rate_hz: float = 400.0
+    expected_rate_hz: float = RATE_HZ
     rate_refused: bool = False
     """The measured rate is not the back-end model's: no estimates (an error)."""
     held: int = 0

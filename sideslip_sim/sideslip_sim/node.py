@@ -28,15 +28,15 @@ from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
 from sideslip_msgs_py.outputs import clock_message
 from sideslip_msgs_py.parameters import ParameterSpec, help_text
 from sideslip_msgs_py.sample import SensorNoiseSigma
+from sideslip_msgs_py.timing import RATE_HZ
 from sideslip_sim.maneuvers import ManeuverError
 from sideslip_sim.sensors import noise_profile
-from sideslip_sim.simulate import DT_S
 from sideslip_sim.stream import ManeuverSpec, SampleStream, select_runs
 from sideslip_sim.tir import TirError
 from sideslip_sim.vehicle import VehicleFileError, load_vehicle
 
 NODE_NAME = "sideslip_sim"
-STEP_HZ = round(1.0 / DT_S)
+STEP_HZ = round(RATE_HZ)
 _SLEEP_GRANULARITY_S = 0.0002  # wake this early and spin the rest: sleep() overshoots
 _LONG_WAIT_S = 0.005
 _LATENESS_KEPT = 240_000  # last 10 min at 400 Hz: bounded memory when looping for days
@@ -59,7 +59,7 @@ PARAMETERS = (
     ParameterSpec("seed", 0, "Noise (and randomized preset) seed; same seed, same data."),
     ParameterSpec("randomized_count", 10, "Runs of the randomized preset."),
     ParameterSpec(
-        "rate_hz", 400.0, "Publish rate [Hz]: 400 or a divisor (every k-th 2.5-ms step)."
+        "rate_hz", RATE_HZ, "Publish rate [Hz]: 400 or a divisor (every k-th 2.5-ms step)."
     ),
     ParameterSpec(
         "real_time_factor",

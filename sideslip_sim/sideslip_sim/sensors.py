@@ -15,6 +15,7 @@ import zlib
 import numpy as np
 
 from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
+from sideslip_msgs_py.timing import STEP_NS
 from sideslip_sim.simulate import SimResult
 
 NOISE_PROFILES = ("paper", "none")
@@ -39,7 +40,7 @@ def exact_samples(result: SimResult, start_stamp_ns: int = 0) -> SampleArrays:
 
     Stamps are start + k·dt in integer nanoseconds (2.5 ms = 2 500 000 ns, exact).
     """
-    dt_ns = round((result.t_s[1] - result.t_s[0]) * 1e9) if len(result) > 1 else 2_500_000
+    dt_ns = round((result.t_s[1] - result.t_s[0]) * 1e9) if len(result) > 1 else STEP_NS
     stamps = start_stamp_ns + np.arange(len(result), dtype=np.int64) * dt_ns
     return SampleArrays(
         stamp_ns=stamps,

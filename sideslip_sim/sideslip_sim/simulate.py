@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from sideslip_msgs_py.timing import STEP_S
 from sideslip_sim import dynamics as dyn
 from sideslip_sim.axle_tires import axle_tires
 from sideslip_sim.driver import DriverParams, pure_pursuit
@@ -20,7 +21,7 @@ from sideslip_sim.single_track import SingleTrack
 from sideslip_sim.tire import TireParams, load_tire
 from sideslip_sim.vehicle import VehicleParams
 
-DT_S = 0.0025  # 400 Hz, the paper's step
+DT_S = STEP_S  # 400 Hz, the paper's step (the contract's, sideslip_msgs_py.timing)
 _HANDOVER_STEPS = 120  # 0.3 s blend when the driver hands over to open-loop steering
 
 # Output channels of the compiled loop, one row per sample.

@@ -12,8 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Final
 
-WINDOW_STEPS: Final = 100
-DT_S: Final = 0.0025
+from sideslip_msgs_py.timing import STEP_S
+from sideslip_msgs_py.timing import WINDOW_STEPS as CONTRACT_WINDOW_STEPS
+
+WINDOW_STEPS: Final = CONTRACT_WINDOW_STEPS
+DT_S: Final = STEP_S
 WINDOW_S: Final = WINDOW_STEPS * DT_S
 """The paper's window as a horizon [s]: a model at another rate keeps it."""
 

@@ -22,6 +22,7 @@ import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
 from sideslip_msgs_py.model_inputs import INPUT_SETS
+from sideslip_msgs_py.timing import STEP_S
 from sideslip_msgs_py.uncertainty import Z_95, Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 
@@ -206,7 +207,7 @@ def evaluate_runs(
     *,
     window_steps: int,
     smoothing_steps: int = 20,
-    dt_s: float = 0.0025,
+    dt_s: float = STEP_S,
     vehicle: VehicleDescription | None = None,
     observer_params_file: str | None = None,
     filters: Mapping[str, str] | None = None,

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.model_inputs import ModelInputError, check_inputs
+from sideslip_msgs_py.timing import WINDOW_STEPS
 
 from .dataset import BETA, DatasetError
 
@@ -82,7 +83,10 @@ class Normalizer:
 
     @classmethod
     def fit(
-        cls, runs: Sequence[Run], features: Sequence[str] | InputSpec, window_steps: int = 100
+        cls,
+        runs: Sequence[Run],
+        features: Sequence[str] | InputSpec,
+        window_steps: int = WINDOW_STEPS,
     ) -> Normalizer:
         """Statistics over every finite sample of ``runs`` (pass the training runs only).
 

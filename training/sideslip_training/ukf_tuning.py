@@ -49,11 +49,10 @@ from sideslip_estimator.replay import replay as replay_samples
 from sideslip_estimator.replay import replay_columns
 from sideslip_msgs_py.bag import read_bag
 
-from .config import PsoSettings
+from .config import WINDOW_STEPS, PsoSettings
 from .parallel import EvaluationError, make_evaluator
 from .pso import Dimension, FailedFitness, PsoError, PsoState, SearchSpace, optimize
 
-WINDOW_STEPS = 100
 DEFAULT_DECADES = 1.0
 _DEFAULTS = {p.name: p.default for p in UkfBackend.parameters}
 

@@ -58,6 +58,7 @@ import numpy.typing as npt
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
 from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.timing import STEP_S
 
 from .base import BackendError, Estimate, parameter_values, positive_values
 from .ukf_model import MIN_VX_MPS, SingleTrackMagicFormula, UkfParams
@@ -244,7 +245,7 @@ class UkfBackend:
             n, alpha=1.0, beta=2.0, kappa=0.0, sqrt_method=_upper_cholesky
         )
         self._ukf = kalman.UnscentedKalmanFilter(
-            dim_x=n, dim_z=3, dt=0.0025, hx=self._hx, fx=self._fx, points=points
+            dim_x=n, dim_z=3, dt=STEP_S, hx=self._hx, fx=self._fx, points=points
         )
         self._ukf.R = np.diag(np.square([sig[k] for k in TUNED_PARAMETERS[:3]]))
         self.model_id = f"ukf({self.params.name})"
