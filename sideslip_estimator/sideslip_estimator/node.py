@@ -29,6 +29,7 @@ from sideslip_estimator.parameters import PARAMETERS, estimator_params
 from sideslip_estimator.status import Counts, Observation, assess
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.errors import BagError, MessageFieldError
+from sideslip_msgs_py.live_inputs import LiveMapper
 from sideslip_msgs_py.messages import RclpyMessages, imu_fields, steering_fields, twist_fields
 from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
@@ -40,7 +41,7 @@ from sideslip_msgs_py.outputs import (
     status_message,
 )
 from sideslip_msgs_py.parameters import help_text
-from sideslip_msgs_py.topic_map import LiveMapper, TopicMap, TopicMapError
+from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 
 NODE_NAME = "sideslip_estimator"
 LOG_EVERY_S = 5.0  # repeated rejections of one kind are logged at most this often

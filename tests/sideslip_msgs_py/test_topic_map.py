@@ -115,7 +115,7 @@ def test_a_velocity_turned_into_the_world_and_back_is_unchanged(
 def test_the_live_mapper_forms_a_sample_on_each_clock_message_from_the_latest_values() -> None:
     from rosbags.typesys import Stores, get_typestore
 
-    from sideslip_msgs_py.topic_map import LiveMapper
+    from sideslip_msgs_py.live_inputs import LiveMapper
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     Float64 = ts.types["std_msgs/msg/Float64"]

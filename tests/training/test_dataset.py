@@ -21,9 +21,9 @@ from sideslip_training.dataset import (
     data_digest,
     find_bags,
     load_runs,
-    split_runs,
 )
 from sideslip_training.normalize import Normalizer
+from sideslip_training.splits import split_runs
 from sideslip_training.windows import WindowIndex
 
 T = 100
@@ -429,7 +429,7 @@ def test_a_bag_too_slow_to_resample_is_refused_naming_both_rates(
 def test_split_in_time_takes_each_bags_last_part_and_no_window_spans_the_cut(
     make_arrays, write_arrays, tmp_path
 ) -> None:
-    from sideslip_training.dataset import split_in_time
+    from sideslip_training.splits import split_in_time
 
     stamps = np.concatenate([np.arange(600), 1000 + np.arange(400)]) * 2_500_000  # a gap
     write_arrays("long", make_arrays(1000, stamps_ns=stamps), folder=tmp_path / "b")

@@ -11,9 +11,10 @@ import torch
 
 from sideslip_msgs_py.features import feature_set
 from sideslip_training.config import WINDOW_STEPS
-from sideslip_training.dataset import load_runs, split_runs
+from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import metrics_deg
 from sideslip_training.normalize import Normalizer
+from sideslip_training.splits import split_runs
 from sideslip_training.trainer import TrainConfig, train_model
 from sideslip_training.windows import WindowIndex
 

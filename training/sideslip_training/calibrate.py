@@ -26,10 +26,11 @@ from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.uncertainty import TERMS, Uncertainty, terms
 
 from .cli_errors import EXIT_BAD_INPUT
-from .dataset import DatasetError, Run, load_runs, split_runs
+from .dataset import DatasetError, Run, load_runs
 from .evaluate import predict_run
 from .export import load_model
 from .init_model import InitError, resolve
+from .splits import split_runs
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -31,12 +31,13 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription
 from . import __version__
 from .cli_errors import EXIT_BAD_INPUT, CliError
 from .config import DT_S, PROFILES, WINDOW_S, TrainProfile, profile
-from .dataset import DatasetError, Run, data_digest, load_runs, split_in_time, split_runs
+from .dataset import DatasetError, Run, data_digest, load_runs
 from .export import export_model, load_model
 from .init_model import InitError, check_fit, load_init
 from .inputs import InputSpec
 from .normalize import Normalizer
 from .search import particle_threads, run_pso
+from .splits import split_in_time, split_runs
 from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
 from .windows import WindowIndex
 

@@ -207,7 +207,8 @@ def _bag_names(bags: Sequence[Path]) -> list[str]:
     return [n if names.count(n) == 1 else str(p) for p, n in zip(bags, names, strict=True)]
 
 
-def _slice(samples: SampleArrays, start: int, stop: int) -> SampleArrays:
+def slice_samples(samples: SampleArrays, start: int, stop: int) -> SampleArrays:
+    """Rows start:stop of every column."""
     cols = {f.name: getattr(samples, f.name) for f in dataclasses.fields(samples)}
     return SampleArrays(**{k: (None if v is None else v[start:stop]) for k, v in cols.items()})
 
@@ -350,7 +351,7 @@ def load_runs(
             note = f"spun at {onset:.2f} s: samples after the spin onset left out"
             notes.append(note)
             lines.append(f"{name}: {note}")
-            samples = _slice(samples, 0, keep)
+            samples = slice_samples(samples, 0, keep)
             if len(samples) == 0:
                 refused.append(f"{name}: spun at once")
                 continue
@@ -376,7 +377,7 @@ def load_runs(
                 Run(
                     name=f"{name}#{k}" if cuts else name,
                     path=path,
-                    samples=_slice(samples, start, stop) if cuts else samples,
+                    samples=slice_samples(samples, start, stop) if cuts else samples,
                     notes=tuple(notes),
                     truncated=contents.truncated,
                     run_metadata=contents.run_metadata,
@@ -400,87 +401,6 @@ def load_runs(
         msg = f"no usable run in {len(bags)} bag(s): {reasons}"
         raise DatasetError(msg)
     return runs, report
-
-
-# --- splitting ------------------------------------------------------------------------------
-
-
-def _split_key(seed: int, bag: str) -> str:
-    # A hash rank, not a shuffled list: deterministic across numpy versions and input
-    # order, and adding a bag moves no other bag across the split unless the count changes.
-    return hashlib.sha256(f"{seed}\x00{bag}".encode()).hexdigest()
-
-
-def split_runs(runs: Sequence[Run], val_fraction: float, seed: int) -> tuple[list[Run], list[Run]]:
-    """Split runs into (training, validation) by bag: all segments of a bag on one side.
-
-    ``round(val_fraction × bags)`` bags (at least 1, at most bags − 1) go to validation,
-    chosen by a seeded hash of the bag name; each side keeps the input order of runs.
-
-    Raises:
-        DatasetError: ``val_fraction`` outside [0, 1), no runs, or one bag with
-            ``val_fraction`` > 0 (its windows would be on both sides).
-    """
-    if not 0.0 <= val_fraction < 1.0:
-        msg = f"val_fraction must be in [0, 1), got {val_fraction!r}"
-        raise DatasetError(msg)
-    if not runs:
-        raise DatasetError("split_runs: no runs to split")
-    if val_fraction == 0.0:
-        return list(runs), []
-    bags = sorted({r.bag for r in runs})
-    if len(bags) < 2:
-        msg = (
-            f"cannot split 1 bag ({bags[0]}) into training and validation: windows of one "
-            "bag on both sides would leak; give more bags or val_fraction=0"
-        )
-        raise DatasetError(msg)
-    n_val = min(max(round(val_fraction * len(bags)), 1), len(bags) - 1)
-    val_bags = set(sorted(bags, key=lambda b: _split_key(seed, b))[:n_val])
-    return [r for r in runs if r.bag not in val_bags], [r for r in runs if r.bag in val_bags]
-
-
-def split_in_time(runs: Sequence[Run], fraction: float, suffix: str) -> tuple[list[Run], list[Run]]:
-    """Split each bag in time: its last ``fraction`` of samples (counted over all its
-    segments) go to the second list, named ``<name>@<suffix>``, the rest to the first.
-
-    For one long recording, where a split by bag is impossible: no window spans the cut
-    (the two sides are separate runs), and nothing depends on bag names.
-
-    Raises:
-        DatasetError: ``fraction`` outside (0, 1), no runs, or a bag so short that a side
-            would be empty.
-    """
-    if not 0.0 < fraction < 1.0:
-        raise DatasetError(f"a time split fraction must be in (0, 1), got {fraction!r}")
-    if not runs:
-        raise DatasetError("split_in_time: no runs to split")
-    head: list[Run] = []
-    tail: list[Run] = []
-    for bag in dict.fromkeys(r.bag for r in runs):
-        mine = [r for r in runs if r.bag == bag]
-        total = sum(len(r) for r in mine)
-        cut = total - round(fraction * total)
-        if cut <= 0 or cut >= total:
-            msg = f"{bag}: {total} samples are too few to split {fraction:g} off in time"
-            raise DatasetError(msg)
-        seen = 0
-        for r in mine:
-            n = len(r)
-            if seen + n <= cut:
-                head.append(r)
-            elif seen >= cut:
-                tail.append(dataclasses.replace(r, name=f"{r.name}@{suffix}"))
-            else:
-                k = cut - seen
-                head.append(dataclasses.replace(r, samples=_slice(r.samples, 0, k)))
-                tail.append(
-                    dataclasses.replace(
-                        r, name=f"{r.name}@{suffix}", samples=_slice(r.samples, k, n)
-                    )
-                )
-            seen += n
-    return head, tail
 
 
 # --- provenance -------------------------------------------------------------------------------

@@ -84,17 +84,8 @@ def _evaluate_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from .evaluate import (
-        FilterError,
-        evaluate_runs,
-        model_label,
-        plot_band,
-        plot_error_pdfs,
-        plot_traces,
-        pooled,
-        table_csv,
-        table_markdown,
-    )
+    from .evaluate import FilterError, evaluate_runs, model_label, pooled, table_csv, table_markdown
+    from .evaluate_figures import plot_band, plot_error_pdfs, plot_traces
 
     args = _evaluate_parser().parse_args(argv)
     try:

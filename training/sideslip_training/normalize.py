@@ -1,6 +1,6 @@
 """Z-score statistics of the training runs: features and β, to and from JSON.
 
-:class:`Normalizer` is fitted on the training runs only (:func:`~.dataset.split_runs`
+:class:`Normalizer` is fitted on the training runs only (:func:`~.splits.split_runs`
 first), applied to every window (:mod:`.windows`) and saved in the model artifact's
 metadata, so the estimator normalises its input exactly as training did.
 

@@ -1,0 +1,72 @@
+"""The estimator node's inputs from another stack's topics, through a topic map, one
+message at a time (no rclpy: the node hands each decoded message in)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from .errors import BagError
+from .messages import ImuFields, SteeringFields, TwistFields
+from .topic_map import FieldSource, TopicMap, field_value, heading_yaw
+
+
+class LiveMapper:
+    """The estimator node's inputs from mapped topics, one message at a time (no rclpy).
+
+    Each message updates the channels its topic gives (value and stamp: ``header.stamp``,
+    else the receive time). A message on the clock channel's topic then yields the
+    core's three inputs, built from the latest values: the twist stamped as its
+    ``x_v_mps`` source, the steering as its ``stl_m`` source, the IMU as the clock
+    message. An unmapped ``y_v_mps`` is passed as 0 (the node refuses models that read
+    it); an unmapped yaw rate or acceleration makes no sample.
+    """
+
+    def __init__(self, topic_map: TopicMap) -> None:
+        self.map = topic_map
+        self.clock_topic = topic_map.channels[topic_map.clock].topic
+        self._values: dict[str, tuple[int, float]] = {}
+        self._yaw: float | None = None
+        self._by_topic: dict[str, list[tuple[str, FieldSource]]] = {}
+        for name, src in topic_map.channels.items():
+            self._by_topic.setdefault(src.topic, []).append((name, src))
+
+    def on_message(self, topic: str, msg: Any, receive_ns: int) -> tuple[Any, Any, Any] | None:
+        """Take one message; on the clock topic, ``(TwistFields, SteeringFields,
+        ImuFields)`` for the core (else None).
+
+        Raises:
+            BagError: the message lacks a mapped field (the message names it).
+        """
+        header = getattr(msg, "header", None)
+        stamp = (
+            int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+            if header is not None
+            else receive_ns
+        )
+        heading = self.map.velocity_heading
+        try:
+            for name, src in self._by_topic.get(topic, ()):
+                value = float(field_value(msg, src.field)) * src.scale + src.offset
+                self._values[name] = (stamp, value)
+            if heading is not None and heading.topic == topic:
+                self._yaw = heading_yaw(field_value(msg, heading.field), heading.kind)
+        except (AttributeError, KeyError, IndexError, TypeError, ValueError) as err:
+            raise BagError(f"{topic}: a mapped field is missing or not a number: {err}") from None
+        if topic != self.clock_topic:
+            return None
+        v = self._values
+        needed = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
+        if any(n not in v for n in needed):
+            return None
+        x_v, y_v = v["x_v_mps"][1], v.get("y_v_mps", (0, 0.0))[1]
+        if heading is not None:
+            if self._yaw is None:
+                return None
+            c, s = math.cos(self._yaw), math.sin(self._yaw)
+            x_v, y_v = c * x_v + s * y_v, -s * x_v + c * y_v
+        return (
+            TwistFields(v["x_v_mps"][0], x_v, y_v),
+            SteeringFields(v["stl_m"][0], v["stl_m"][1], math.nan),
+            ImuFields(stamp, v["x_a_mps2"][1], v["y_a_mps2"][1], v["yaw_rate_radps"][1]),
+        )
