@@ -321,17 +321,18 @@ def test_bags_of_another_stack_train_and_evaluate_through_a_topic_map(tmp_path, 
     model = tmp_path / "car.safetensors"
     args = ["--data", str(bags), "--topic-map", str(topic_map), "--model", "lstm"]
     assert train_main([*args, "--hidden-units", "4", "--out", str(model), *TINY]) == 0
-    # Trained at the model's 400 Hz: the 100-Hz bags were resampled.
+    # Trained at the bags' own 100 Hz (the car's rate, 25 samples = 250 ms).
     config = json.loads((tmp_path / "car.run" / "config.json").read_text())
-    assert config["sample_period_s"] == pytest.approx(0.0025)
-    assert load_model(model)[1].dt_s == pytest.approx(0.0025)
+    assert config["sample_period_s"] == pytest.approx(0.01)
+    assert load_model(model)[1].dt_s == pytest.approx(0.01)
+    assert load_model(model)[1].window_steps == 25
     code = evaluate_main(
         ["--model", str(model), "--data", str(bags), "--topic-map", str(topic_map)]
     )
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert f"read through {topic_map}" in captured.err and "LSTM" in captured.out
-    assert "resampled from 100.0 Hz to 400 Hz" in captured.err
+    assert "resampled" not in captured.err  # the model runs at the bags' rate
     # Without the map the same bags are not ours: a clear error, exit 2.
     assert evaluate_main(["--model", str(model), "--data", str(bags)]) == 2
     assert "--topic-map" in capsys.readouterr().err

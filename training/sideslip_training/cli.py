@@ -169,7 +169,7 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--rate-hz",
         type=float,
-        help="the rate the model runs at [Hz] (default: the contract's 400; with --init the "
+        help="the rate the model runs at [Hz] (default: the bags' own, with --init the "
         "model's): bags at "
         "another rate are resampled to it (low-pass filtered first when downsampling), "
         "bags outside 50-1000 Hz refused; the report says which",
@@ -305,8 +305,13 @@ def _load(
         )
     if normalizer is None:
         normalizer = Normalizer.fit(train_runs, spec, window)
-    train = WindowIndex.build(train_runs, spec, normalizer, window, prof.stride)
-    val = WindowIndex.build(val_runs, spec, normalizer, window, prof.stride)
+    stride = prof.stride
+    if args.stride is None:
+        # Little data (a recording of minutes): every window, not every 10th; big data
+        # (the fleet, over a million samples) keeps the profile's stride.
+        stride = min(prof.stride, max(1, sum(len(r) for r in train_runs) // SAMPLES_PER_STRIDE))
+    train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
+    val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
         raise CliError(
             f"no windows of {window} samples: {len(train.ends)} for training, "
@@ -314,7 +319,7 @@ def _load(
         )
     log(
         f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
-        f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {prof.stride})"
+        f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
     )
     return runs, train_runs, val_runs, test_runs, normalizer, train, val
 
@@ -354,6 +359,40 @@ def _val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) 
         "val_rmse_deg": float(np.sqrt(np.mean(err**2))),
         "val_me_deg": float(np.mean(err)),
     }
+
+
+SAMPLES_PER_STRIDE = 100_000
+"""Without --stride, the stride is the profile's or one per this many training samples,
+whichever is smaller."""
+
+
+def _recorded_rate_hz(args: argparse.Namespace) -> float:
+    """The rate the bags were recorded at (the median over the first five), so that a
+    model runs at its car's own rate; within 1 % of the contract's 400 Hz, 400."""
+    from sideslip_msgs_py.bag import read_bag
+    from sideslip_msgs_py.resample import measured_step_s
+    from sideslip_msgs_py.topic_map import read_mapped_bag
+
+    from .dataset import find_bags
+
+    topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
+    steps = []
+    for path in find_bags(args.data)[:5]:
+        try:
+            samples = (
+                read_bag(path).samples
+                if topic_map is None
+                else read_mapped_bag(path, topic_map).samples
+            )
+        except Exception:  # an unreadable bag is reported by load_runs
+            continue
+        step = measured_step_s(samples.stamp_ns)
+        if step:
+            steps.append(step)
+    if not steps:
+        return 1.0 / DT_S
+    rate = 1.0 / float(np.median(steps))
+    return 1.0 / DT_S if abs(rate * DT_S - 1.0) <= 0.01 else round(rate, 1)
 
 
 def _window_steps(args: argparse.Namespace, step_s: float) -> int:
@@ -424,7 +463,9 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                 raise CliError("--model is required (or --init MODEL to fine-tune one)")
             features = input_set(args.features or "paper")
             args.prior = args.prior or "none"
-            args.rate_hz = 1.0 / DT_S if args.rate_hz is None else args.rate_hz
+            if args.rate_hz is None:
+                args.rate_hz = _recorded_rate_hz(args)
+                log(f"model rate {args.rate_hz:g} Hz: the bags' own (--rate-hz to choose)")
             hidden_units = (
                 prof.default_hidden_units if args.hidden_units is None else args.hidden_units
             )

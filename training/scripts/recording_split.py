@@ -1,0 +1,194 @@
+"""sideslip-train's defaults against a plain LSTM on recordings split 70/30 in time.
+
+For cars the fleet models never saw (drawn by the fleet sampler with a seed no training
+set uses), each car's ~3 minutes of driving (20 fleet-style runs, μ 0.3-1.0) is written
+as a 100-Hz "recording" (the 400-Hz simulation resampled, as a real logger would give);
+the first 70 % of every run is for training, the last 30 % for the test:
+
+* **defaults**: ``sideslip-train --split time --test-fraction 0.3 --features measurable
+  --model lstm`` (quick profile: its own validation part taken from the training 70 %,
+  early stopping, the recording's own rate, the 250-ms window, every window of a small
+  data set), scored by its own test step (``metrics.json``);
+* **plain**: an LSTM of the same size (64 units) on the same measurable channels at the
+  recording's 100 Hz, window 25 samples (250 ms), z-scored, Adam 1e-3, MSE, 30 epochs,
+  no validation, trained on the same first 70 % and scored on the same last 30 %.
+
+    python training/scripts/recording_split.py --out data/recording-split
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from sideslip_msgs_py.bag import write_bag
+from sideslip_msgs_py.features import FEATURE_SETS
+from sideslip_msgs_py.resample import to_step
+from sideslip_msgs_py.sample import SensorNoiseSigma
+from sideslip_sim.fleet import sample_fleet
+from sideslip_sim.generate import generate, prepare_output
+from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.presets import VehicleRun, fleet_runs
+from sideslip_training.cli import train_main
+from sideslip_training.dataset import load_runs
+
+SEED = 77  # no training set uses it
+RUNS_PER_CAR = 20
+
+
+def make_recordings(out: Path, cars: int) -> list[Path]:
+    """Per car a folder of 100-Hz bags (the car's runs); kept when already there."""
+    done = sorted((out / "recordings").glob("*")) if (out / "recordings").exists() else []
+    if len(done) >= cars:
+        return done[:cars]
+    fleet = sample_fleet(cars, SEED, prefix="rec", exclude_digests=held_out_digests()).vehicles
+    folders = []
+    for car in fleet:
+        runs = []
+        for k in range(RUNS_PER_CAR // 4):
+            for r in fleet_runs([car], 4, SEED + k):
+                runs.append(
+                    VehicleRun(car, dataclasses.replace(r.maneuver, name=f"p{k}_{r.maneuver.name}"))
+                )
+        sim = out / "sim" / car.name
+        prepare_output(sim, force=True)
+        generate(runs, sim, seed=SEED, progress=False)
+        rec = out / "recordings" / car.name
+        prepare_output(rec, force=True)
+        loaded, _ = load_runs([sim])
+        for run in loaded:
+            slow = to_step(run.samples, 0.01).samples  # the logger's 100 Hz
+            write_bag(
+                rec / run.name,
+                slow,
+                sigma=SensorNoiseSigma.paper(),
+                run_metadata={"name": run.name},
+            )
+        folders.append(rec)
+    return folders
+
+
+def plain_lstm(
+    folder: Path, epochs: int = 30, window: int = 25, hidden: int = 64
+) -> dict[str, float]:
+    """The plain way: first 70 % of each run trains, last 30 % tests, at 100 Hz."""
+    torch.manual_seed(0)
+    channels = FEATURE_SETS["measurable"]
+    runs, _ = load_runs([folder])
+    train_x, train_y, test_x, test_y = [], [], [], []
+    for run in runs:
+        s = run.samples
+        x = np.stack([getattr(s, c) for c in channels], axis=1)
+        y = s.beta_rad()
+        cut = len(y) - round(0.3 * len(y))
+        for (xs, ys), (bx, by) in (
+            ((x[:cut], y[:cut]), (train_x, train_y)),
+            ((x[cut:], y[cut:]), (test_x, test_y)),
+        ):
+            if len(ys) < window:
+                continue
+            w = np.lib.stride_tricks.sliding_window_view(xs, window, axis=0).transpose(0, 2, 1)
+            bx.append(w)
+            by.append(ys[window - 1 :])
+    xtr, ytr = np.concatenate(train_x), np.concatenate(train_y)
+    xte, yte = np.concatenate(test_x), np.concatenate(test_y)
+    mean, std = xtr.reshape(-1, xtr.shape[-1]).mean(0), xtr.reshape(-1, xtr.shape[-1]).std(0) + 1e-9
+    bmean, bstd = ytr.mean(), ytr.std() + 1e-12
+
+    class Net(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.lstm = nn.LSTM(len(channels), hidden, batch_first=True)
+            self.head = nn.Linear(hidden, 1)
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return self.head(self.lstm(x)[0][:, -1]).squeeze(-1)
+
+    net = Net()
+    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+    xt = torch.tensor((xtr - mean) / std, dtype=torch.float32)
+    yt = torch.tensor((ytr - bmean) / bstd, dtype=torch.float32)
+    for _ in range(epochs):
+        order = torch.randperm(len(yt))
+        for i in range(0, len(yt), 256):
+            idx = order[i : i + 256]
+            opt.zero_grad()
+            loss = nn.functional.mse_loss(net(xt[idx]), yt[idx])
+            loss.backward()
+            opt.step()
+    with torch.inference_mode():
+        est = net(torch.tensor((xte - mean) / std, dtype=torch.float32)).numpy() * bstd + bmean
+    err = np.degrees(est - yte)
+    return {
+        "mae_deg": float(np.mean(np.abs(err))),
+        "rmse_deg": float(np.sqrt(np.mean(err**2))),
+        "samples": int(err.size),
+    }
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, default=Path("data/recording-split"))
+    p.add_argument("--cars", type=int, default=3)
+    args = p.parse_args()
+    torch.set_num_threads(2)
+    results = {}
+    for folder in make_recordings(args.out, args.cars):
+        model = args.out / "models" / f"{folder.name}.safetensors"
+        t0 = time.perf_counter()
+        code = train_main(
+            [
+                "--data",
+                str(folder),
+                "--split",
+                "time",
+                "--test-fraction",
+                "0.3",
+                "--features",
+                "measurable",
+                "--model",
+                "lstm",
+                "--out",
+                str(model),
+                "--force",
+                "--quiet",
+                "--device",
+                "cpu",
+            ]
+        )
+        if code != 0:
+            return code
+        test = json.loads(model.with_suffix(".run").joinpath("metrics.json").read_text())["test"]
+        ours = next(v for k, v in test.items() if k.startswith("LSTM"))
+        t1 = time.perf_counter()
+        plain = plain_lstm(folder)
+        results[folder.name] = {
+            "defaults": {
+                "mae_deg": ours["mae_deg"],
+                "rmse_deg": ours["rmse_deg"],
+                "samples": ours["samples"],
+                "seconds": t1 - t0,
+            },
+            "plain": {**plain, "seconds": time.perf_counter() - t1},
+            "kinematic_20": {
+                k: test["Kinematic (20-step mean)"][k] for k in ("mae_deg", "rmse_deg")
+            },
+        }
+        print(folder.name, json.dumps(results[folder.name]), file=sys.stderr)
+    (args.out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+    ratio = [r["defaults"]["rmse_deg"] / r["plain"]["rmse_deg"] for r in results.values()]
+    print(json.dumps({"rmse_defaults_over_plain": ratio, "mean": float(np.mean(ratio))}))
+    return 0 if all(math.isfinite(x) for x in ratio) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
