@@ -139,14 +139,14 @@ class Estimator:
             check_twist(topic, fields, self.params.limits)
         except InputRejected as err:
             raise self._reject(err) from None
-        self.aligner.twist = fields
+        self.aligner.add_twist(fields)
 
     def on_steering(self, topic: str, fields: SteeringFields) -> None:
         try:
             check_steering(topic, fields, self.params.limits)
         except InputRejected as err:
             raise self._reject(err) from None
-        self.aligner.steering = fields
+        self.aligner.add_steering(fields)
 
     def reject_message(self, reason: str, detail: str) -> InputRejected:
         """Count a message the node could not decode (e.g. a JointState without the rack)."""

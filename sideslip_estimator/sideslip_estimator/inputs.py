@@ -1,22 +1,31 @@
 """Input checks and alignment of the three sensor streams on the IMU stamp.
 
 Each sensor topic arrives on its own; a model sample is formed when an IMU message
-arrives, from its accelerations and yaw rate plus the latest twist and steering
-values, as DESIGN.md says. A sample is rejected (never passed on) when one of those
-inputs is missing, older than ``max_input_age_s`` relative to the IMU stamp, or a
-message held a non-finite or physically absurd value.
+arrives, from its accelerations and yaw rate plus the twist and steering of its time:
+the latest at or before the IMU stamp among the last few received (as the bag reader
+aligns them, so a model sees in the node what it saw in training), else the oldest
+held (a clock slightly ahead). DDS does not order messages of different topics: when
+the IMU lags behind the twist on a loaded machine, the twist of the IMU's own step is
+still found. A sample is rejected (never passed on) when one of those inputs is
+missing, further than ``max_input_age_s`` from the IMU stamp, or a message held a
+non-finite or physically absurd value.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
+
+HISTORY: Final = 16
+"""Twist and steering messages kept for alignment (40 ms at 400 Hz)."""
 
 X_V, Y_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
     ("x_v_mps", "y_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
@@ -85,18 +94,56 @@ class Aligner:
             msg = f"max_input_age_s must be finite and > 0, got {max_input_age_s!r}"
             raise ValueError(msg)
         self.max_age_ns = round(max_input_age_s * NS_PER_S)
-        self.twist: TwistFields | None = None
-        self.steering: SteeringFields | None = None
+        self._twists: deque[TwistFields] = deque(maxlen=HISTORY)
+        self._steerings: deque[SteeringFields] = deque(maxlen=HISTORY)
         self._row = np.zeros(len(CHANNELS))
+
+    def add_twist(self, fields: TwistFields) -> None:
+        self._twists.append(fields)
+
+    def add_steering(self, fields: SteeringFields) -> None:
+        self._steerings.append(fields)
+
+    @property
+    def twist(self) -> TwistFields | None:
+        """The latest twist received (None before the first)."""
+        return self._twists[-1] if self._twists else None
+
+    @twist.setter
+    def twist(self, fields: TwistFields) -> None:
+        self.add_twist(fields)
+
+    @property
+    def steering(self) -> SteeringFields | None:
+        """The latest steering received (None before the first)."""
+        return self._steerings[-1] if self._steerings else None
+
+    @steering.setter
+    def steering(self, fields: SteeringFields) -> None:
+        self.add_steering(fields)
 
     def forget_after(self, imu_stamp_ns: int) -> None:
         """Drop held inputs stamped later than ``imu_stamp_ns`` + the age limit: after a
         stamp jump backwards they belong to the old time line."""
         limit = imu_stamp_ns + self.max_age_ns
-        if self.twist is not None and self.twist.stamp_ns > limit:
-            self.twist = None
-        if self.steering is not None and self.steering.stamp_ns > limit:
-            self.steering = None
+        for held in (self._twists, self._steerings):
+            kept = [f for f in held if f.stamp_ns <= limit]
+            held.clear()
+            held.extend(kept)
+
+    @staticmethod
+    def _of_time(held: deque, imu_stamp_ns: int):  # type: ignore[no-untyped-def]
+        """The held message with the latest stamp at or before the IMU stamp (of equal
+        stamps the last received), else the one with the earliest stamp."""
+        best = None
+        for fields in reversed(held):
+            if fields.stamp_ns <= imu_stamp_ns and (
+                best is None or fields.stamp_ns > best.stamp_ns
+            ):
+                best = fields
+        if best is None and held:
+            best = min(held, key=lambda f: f.stamp_ns)
+        return best
 
     def _age_ok(self, name: str, imu_stamp_ns: int, stamp_ns: int) -> None:
         age = imu_stamp_ns - stamp_ns
@@ -110,17 +157,19 @@ class Aligner:
 
     def sample(self, imu: ImuFields) -> npt.NDArray[np.float64]:
         """The model row for this IMU message (a buffer reused by the next call)."""
-        if self.twist is None:
+        twist = self._of_time(self._twists, imu.stamp_ns)
+        steering = self._of_time(self._steerings, imu.stamp_ns)
+        if twist is None:
             raise InputRejected("no_twist", "no twist received yet")
-        if self.steering is None:
+        if steering is None:
             raise InputRejected("no_steering", "no steering received yet")
-        self._age_ok("twist", imu.stamp_ns, self.twist.stamp_ns)
-        self._age_ok("steering", imu.stamp_ns, self.steering.stamp_ns)
+        self._age_ok("twist", imu.stamp_ns, twist.stamp_ns)
+        self._age_ok("steering", imu.stamp_ns, steering.stamp_ns)
         row = self._row
-        row[X_V] = self.twist.x_v_mps
-        row[Y_V] = self.twist.y_v_mps
+        row[X_V] = twist.x_v_mps
+        row[Y_V] = twist.y_v_mps
         row[X_A] = imu.x_a_mps2
         row[Y_A] = imu.y_a_mps2
         row[YAW_RATE] = imu.yaw_rate_radps
-        row[STL] = self.steering.stl_m
+        row[STL] = steering.stl_m
         return row

@@ -117,8 +117,7 @@ def test_imu_before_any_steering_is_rejected_as_no_steering() -> None:
 def test_twist_or_steering_beyond_max_input_age_is_rejected_as_stale(
     which: str, direction: int
 ) -> None:
-    est = _estimator(max_input_age_s=0.05)
-    _run(est, range(WINDOW))
+    est = _estimator(max_input_age_s=0.05)  # nothing held yet but what is sent here
     imu_stamp = T0_NS + WINDOW * STEP_NS
     off = imu_stamp + direction * 60_000_000  # 60 ms before / after the IMU stamp
     twist_stamp = off if which == "twist" else imu_stamp

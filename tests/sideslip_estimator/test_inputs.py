@@ -121,10 +121,10 @@ def test_twist_or_steering_older_or_newer_than_max_age_is_rejected_as_stale(
 ) -> None:
     a = _aligner(0.05)
     imu = IMU._replace(stamp_ns=10_000 * MS)
-    a.twist = TWIST._replace(stamp_ns=imu.stamp_ns)
-    a.steering = STEER._replace(stamp_ns=imu.stamp_ns)
-    stale = getattr(a, which)._replace(stamp_ns=imu.stamp_ns - offset_ms * MS)
-    setattr(a, which, stale)
+    current = {"twist": TWIST, "steering": STEER}
+    for name, fields in current.items():
+        shift = offset_ms * MS if name == which else 0
+        setattr(a, name, fields._replace(stamp_ns=imu.stamp_ns - shift))
     with pytest.raises(InputRejected) as info:
         a.sample(imu)
     assert info.value.reason == f"stale_{which}"
@@ -173,3 +173,20 @@ def test_forget_after_drops_inputs_from_a_later_time_line_only() -> None:
 def test_max_input_age_must_be_finite_and_positive(bad: float) -> None:
     with pytest.raises(ValueError, match="max_input_age_s"):
         Aligner(bad)
+
+
+def test_the_input_of_the_imu_own_time_is_used_when_a_newer_one_has_arrived() -> None:
+    # On a loaded machine the IMU message of step k may arrive after the twist of step
+    # k + 3 (DDS does not order topics): the twist of step k is still the one used.
+    a = _aligner(0.05)
+    imu = IMU._replace(stamp_ns=10_000 * MS)
+    for k in range(-2, 4):
+        a.twist = TWIST._replace(stamp_ns=imu.stamp_ns + round(k * 2.5 * MS), x_v_mps=20.0 + k)
+        a.steering = STEER._replace(stamp_ns=imu.stamp_ns + round(k * 2.5 * MS), stl_m=0.01 * k)
+    row = a.sample(imu)
+    assert row[CHANNELS.index("x_v_mps")] == 20.0 and row[CHANNELS.index("stl_m")] == 0.0
+    # Only newer ones held (a clock slightly ahead): the nearest is used, within the age.
+    b = _aligner(0.05)
+    b.twist = TWIST._replace(stamp_ns=imu.stamp_ns + 10 * MS)
+    b.steering = STEER._replace(stamp_ns=imu.stamp_ns + 5 * MS)
+    b.sample(imu)

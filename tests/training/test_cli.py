@@ -372,8 +372,12 @@ def test_one_long_recording_trains_on_its_start_and_is_tested_on_its_end(
     assert config["split"] == "time"
     assert config["train_bags"] == ["drive"]
     assert config["val_bags"] == ["drive@val"] and config["test_bags"] == ["drive@test"]
-    test = json.loads((tmp_path / "m.run" / "metrics.json").read_text())["test"]
+    metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
+    test = metrics["test"]
     assert set(test) == {"LSTM", "β = 0", "Kinematic (raw)", "Kinematic (20-step mean)"}
+    # The epoch count chosen on validation, then a refit on training + validation.
+    assert metrics["refit_epochs"] == metrics["best_epoch"]
+    assert (tmp_path / "m.run" / "refit_history.json").exists()
     # 30 % of 4000 samples, less the first window of the test part.
     assert test["LSTM"]["samples"] == 1200 - 99 and math.isfinite(test["LSTM"]["mae_deg"])
 

@@ -108,6 +108,14 @@ def _train_parser() -> argparse.ArgumentParser:
         "once after training",
     )
     p.add_argument(
+        "--refit",
+        choices=["auto", "yes", "no"],
+        default="auto",
+        help="after early stopping chose the epoch count on validation, train again on "
+        "training + validation for that many epochs and export that model; auto: when the "
+        "split is in time (the validation part is then the stretch before the test)",
+    )
+    p.add_argument(
         "--window-s",
         type=float,
         help="window length in seconds (default 0.25, the paper's): the same horizon at "
@@ -321,7 +329,7 @@ def _load(
         f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
         f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
     )
-    return runs, train_runs, val_runs, test_runs, normalizer, train, val
+    return runs, train_runs, val_runs, test_runs, normalizer, train, val, stride
 
 
 def sample_period_s(runs: Sequence[Run]) -> float:
@@ -521,7 +529,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         observer = init.meta.observer if init is not None else None
         spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file)
         keep = init.normalizer if init is not None and args.normalization == "keep" else None
-        runs, train_runs, val_runs, test_runs, normalizer, train, val = _load(
+        runs, train_runs, val_runs, test_runs, normalizer, train, val, stride = _load(
             args, prof, spec, window, log, normalizer=keep
         )
         dt_s = sample_period_s(runs)  # every bag now at step_s: a check, not a choice
@@ -597,6 +605,30 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     (run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
 
     metrics = {**_val_metrics(result, val, normalizer), "best_epoch": result.best_epoch}
+    refit = args.refit == "yes" or (
+        args.refit == "auto" and not args.pso and not args.val and config["split"] == "time"
+    )
+    if refit and not args.pso:
+        # The epoch count chosen on validation, now on all the data before the test part.
+        both = WindowIndex.build([*train_runs, *val_runs], spec, normalizer, window, stride)
+        log(
+            f"refit on training + validation ({len(both.ends)} windows), {result.best_epoch} epochs"
+        )
+        selection = result
+        result = train_model(
+            replace(base, max_epochs=result.best_epoch),
+            both,
+            val,
+            normalizer,
+            init_state=init.net.state_dict() if init is not None else None,
+            keep_last=True,
+        )
+        result.stopped_early = selection.stopped_early
+        result.history, selection_history = selection.history, result.history
+        metrics["refit_epochs"] = len(selection_history)
+        (run_dir / "refit_history.json").write_text(
+            json.dumps([asdict(r) for r in selection_history], indent=2) + "\n"
+        )
     meta = ModelMetadata(
         architecture=args.model,
         hidden_units=result.model.config.hidden_units,

@@ -113,9 +113,12 @@ def train_model(
     *,
     on_epoch: Callable[[EpochRecord], None] | None = None,
     init_state: Mapping[str, torch.Tensor] | None = None,
+    keep_last: bool = False,
 ) -> TrainResult:
     """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE; from the
-    weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation."""
+    weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation.
+    ``keep_last``: run all ``max_epochs`` and keep the last epoch's weights (a refit
+    whose epoch count was chosen before, when ``val`` is part of ``train``)."""
     device = pick_device(cfg.device)
     torch.manual_seed(cfg.seed)
     model = SideslipNet(
@@ -163,7 +166,7 @@ def train_model(
             on_epoch(record)
         if not math.isfinite(record.train_loss):
             break  # diverged: the best earlier epoch (if any) stands
-        if val_mae < result.best_val_mae_deg:
+        if keep_last or val_mae < result.best_val_mae_deg:
             result.best_val_mae_deg, result.best_epoch = val_mae, epoch
             best_state = copy.deepcopy(model.state_dict())
             since_best = 0
