@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 from .errors import BagError
-from .messages import ImuFields, SteeringFields, TwistFields
+from .messages import ImuFields, SteeringFields, TwistFields, stamp_ns
 from .topic_map import FieldSource, TopicMap, field_value, heading_yaw
 
 
@@ -38,12 +38,7 @@ class LiveMapper:
         Raises:
             BagError: the message lacks a mapped field (the message names it).
         """
-        header = getattr(msg, "header", None)
-        stamp = (
-            int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-            if header is not None
-            else receive_ns
-        )
+        stamp = stamp_ns(msg) if hasattr(msg, "header") else receive_ns
         heading = self.map.velocity_heading
         try:
             for name, src in self._by_topic.get(topic, ()):

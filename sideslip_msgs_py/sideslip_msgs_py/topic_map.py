@@ -51,6 +51,7 @@ import numpy.typing as npt
 from .bag_raw import open_raw_bag
 from .errors import BagError, MissingTopicError
 from .features import CHANNELS
+from .messages import stamp_ns
 from .sample import SampleArrays
 
 REFERENCE_KEYS: Final = ("beta_rad", "v_x_mps", "v_y_mps")
@@ -304,9 +305,8 @@ def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
         except Exception as err:
             msg = f"{path}: cannot decode a {msgtype} message on {m.topic}: {err}"
             raise BagError(msg) from err
-        header = getattr(msg, "header", None)
-        if header is not None:
-            stamp = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+        if hasattr(msg, "header"):
+            stamp = stamp_ns(msg)
         else:
             stamp = m.log_time_ns
             headerless.add(m.topic)

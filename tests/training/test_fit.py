@@ -10,7 +10,7 @@ import yaml
 
 from sideslip_msgs_py.artifact import read_artifact
 from sideslip_msgs_py.vehicle_description import VehicleDescription
-from sideslip_sim.fleet import centred_ranges, sample_fleet
+from sideslip_sim.fleet import sample_fleet
 from sideslip_training.fit import Description, main
 
 SEDAN = {
@@ -28,16 +28,7 @@ SEDAN = {
 
 def test_the_fleet_around_a_car_keeps_what_its_owner_gave() -> None:
     n = VehicleDescription.from_mapping({k: v for k, v in SEDAN.items() if k != "drive_layout"})
-    ranges = centred_ranges(
-        mass_kg=n.mass_kg,
-        wheelbase_m=n.wheelbase_m,
-        front_weight_fraction=n.cg_to_rear_axle_m / n.wheelbase_m,
-        cg_height_m=n.cg_height_m,
-        track_m=n.track_m,
-        stl_per_road_wheel_angle_m_per_rad=n.stl_per_road_wheel_angle_m_per_rad,
-        tire_rolling_radius_m=n.tire_rolling_radius_m,
-        layout="rwd",
-    )
+    ranges = Description("my_sedan", n, "rwd").ranges()
     cars = sample_fleet(6, 3, prefix="t", ranges=ranges).vehicles
     for car in cars:
         d = VehicleDescription.from_mapping(

@@ -15,7 +15,7 @@ import argparse
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,10 +35,20 @@ from .splits import split_runs
 FloatArray = npt.NDArray[np.float64]
 
 
+@dataclass(frozen=True)
 class Errors:
-    """A model's errors [rad] on runs, with the inputs of the uncertainty terms."""
+    """A model's errors [rad] per sample, with the inputs of the uncertainty terms and
+    each sample's run index."""
 
-    def __init__(self, runs: Sequence[Run], model, meta) -> None:  # type: ignore[no-untyped-def]
+    err: FloatArray
+    v: FloatArray
+    ay: FloatArray
+    r: FloatArray
+    run: npt.NDArray[np.int64]
+
+    @classmethod
+    def of_runs(cls, runs: Sequence[Run], model, meta) -> Errors:  # type: ignore[no-untyped-def]
+        """The model's errors on ``runs`` (samples with a full window and a finite β̂)."""
         w = meta.window_steps
         parts: dict[str, list[FloatArray]] = {k: [] for k in ("err", "v", "ay", "r", "run")}
         for i, run in enumerate(runs):
@@ -50,11 +60,8 @@ class Errors:
             parts["v"].append(s.x_v_mps[w - 1 :][ok])
             parts["ay"].append(s.y_a_mps2[w - 1 :][ok])
             parts["r"].append(s.yaw_rate_radps[w - 1 :][ok])
-            parts["run"].append(np.full(int(ok.sum()), i, dtype=np.float64))
-        cat = {k: np.concatenate(v) if v else np.empty(0) for k, v in parts.items()}
-        self.err, self.v, self.ay, self.r = cat["err"], cat["v"], cat["ay"], cat["r"]
-        self.run = cat["run"].astype(np.int64)
-        self.names = [r.name for r in runs]
+            parts["run"].append(np.full(int(ok.sum()), i))
+        return cls.from_arrays(*(np.concatenate(parts[k]) for k in ("err", "v", "ay", "r", "run")))
 
     @classmethod
     def from_arrays(
@@ -66,13 +73,11 @@ class Errors:
         run: npt.NDArray[np.int64] | None = None,
     ) -> Errors:
         """Errors given directly (``run``: each sample's run index; default all run 0)."""
-        self = cls.__new__(cls)
-        self.err, self.v, self.ay, self.r = (
+        e, v, ay, r = (
             np.asarray(a, dtype=np.float64) for a in (err, x_v_mps, y_a_mps2, yaw_rate_radps)
         )
-        self.run = np.zeros(self.err.size, np.int64) if run is None else np.asarray(run)
-        self.names = [str(i) for i in range(int(self.run.max()) + 1 if self.run.size else 0)]
-        return self
+        runs = np.zeros(e.size, np.int64) if run is None else np.asarray(run, dtype=np.int64)
+        return cls(e, v, ay, r, runs)
 
     def __len__(self) -> int:
         return int(self.err.size)
@@ -118,13 +123,7 @@ def coverage_of(errors: Errors, unc: Uncertainty) -> tuple[float, FloatArray]:
     inside = np.abs(errors.err) <= z_of(unc.coverage) * np.sqrt(
         unc.variance(errors.v, errors.ay, errors.r)
     )
-    per_run = np.array(
-        [
-            inside[errors.run == i].mean()
-            for i in range(len(errors.names))
-            if (errors.run == i).any()
-        ]
-    )
+    per_run = np.array([inside[errors.run == i].mean() for i in np.unique(errors.run)])
     return float(inside.mean()), per_run
 
 
@@ -138,7 +137,8 @@ def calibrate(
 ) -> tuple[Uncertainty, dict[str, float]]:
     """The uncertainty model for ``model`` from validation ``runs`` and its figures."""
     fit_runs, scale_runs = split_runs(runs, 0.5, seed)
-    fit_errors, scale_errors = Errors(fit_runs, model, meta), Errors(scale_runs, model, meta)
+    fit_errors = Errors.of_runs(fit_runs, model, meta)
+    scale_errors = Errors.of_runs(scale_runs, model, meta)
     if len(fit_errors) < 100 or len(scale_errors) < 100:
         raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
     coefficients = fit_coefficients(fit_errors)

@@ -84,6 +84,22 @@ class Description:
             raise CliError(str(err)) from None
         return cls(name, nominal, layout)
 
+    def ranges(self) -> Any:
+        """The fleet ranges around this car (:func:`sideslip_sim.fleet.centred_ranges`)."""
+        from sideslip_sim.fleet import centred_ranges
+
+        n = self.nominal
+        return centred_ranges(
+            mass_kg=n.mass_kg,
+            wheelbase_m=n.wheelbase_m,
+            front_weight_fraction=n.cg_to_rear_axle_m / n.wheelbase_m,
+            cg_height_m=n.cg_height_m,
+            track_m=n.track_m,
+            stl_per_road_wheel_angle_m_per_rad=n.stl_per_road_wheel_angle_m_per_rad,
+            tire_rolling_radius_m=n.tire_rolling_radius_m,
+            layout=self.layout,
+        )
+
     def digest(self) -> str:
         text = json.dumps([self.nominal.to_dict(), self.layout], sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -91,26 +107,15 @@ class Description:
 
 def plan_runs(desc: Description, profile: FitProfile, seed: int) -> tuple[list[Any], list[Any]]:
     """The training runs (the fleet around the car) and the test car's runs."""
-    from sideslip_sim.fleet import centred_ranges, sample_fleet
+    from sideslip_sim.fleet import sample_fleet
     from sideslip_sim.held_out import held_out_digests
     from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
 
-    n = desc.nominal
-    ranges = centred_ranges(
-        mass_kg=n.mass_kg,
-        wheelbase_m=n.wheelbase_m,
-        front_weight_fraction=n.cg_to_rear_axle_m / n.wheelbase_m,
-        cg_height_m=n.cg_height_m,
-        track_m=n.track_m,
-        stl_per_road_wheel_angle_m_per_rad=n.stl_per_road_wheel_angle_m_per_rad,
-        tire_rolling_radius_m=n.tire_rolling_radius_m,
-        layout=desc.layout,
-    )
     cars = sample_fleet(
         profile.cars + 1,
         seed,
         prefix=f"{desc.name}_fit",
-        ranges=ranges,
+        ranges=desc.ranges(),
         exclude_digests=held_out_digests(),
     ).vehicles
     train = fleet_runs(cars[:-1], FLEET_RUNS_PER_CAR * profile.cars, seed)

@@ -229,8 +229,7 @@ class PsoLstmBackend:
 
         self.meta = meta
         self.dt_s = meta.dt_s
-        self.sample_period_s = meta.dt_s
-        """Sample period the model was trained at [s]."""
+        """Sample period the model was trained at [s] (also ``sample_period_s``)."""
         self.window_steps = window_steps
         self.threads = threads
         rmse_deg = meta.metrics.get(VALIDATION_RMSE_KEY)
@@ -261,6 +260,11 @@ class PsoLstmBackend:
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + ")"
         )
+
+    @property
+    def sample_period_s(self) -> float:
+        """The step [s] the model needs its inputs at (the Backend protocol's name)."""
+        return self.dt_s
 
     def reset(self) -> None:
         """Restart the streaming engine's windows and the observer (if any)."""
