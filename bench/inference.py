@@ -5,8 +5,9 @@ with alignment, the window and publishing); the target is p99 < 0.5 ms for hidde
 units <= 128. Each configuration gets an artifact of random weights (the cost does not
 depend on their values), the paper's six features and a 100-step window, then
 ``--warmup`` untimed and ``--calls`` timed calls on a window that slides by one row per
-call, as in the node, once per engine (``numpy``: the streaming engine, the default;
-``torch``: the whole window through torch per call) in the same run, with their ratio.
+call, as in the node, once per engine (``numba``: the streaming engine compiled, the
+default; ``numpy``: the same in float64 numpy; ``torch``: the whole window through torch
+per call) in the same run, with the ratios of torch to each streaming engine.
 Models that read the car or the UKF get ``paper_sedan``'s files (the UKF then runs
 inside ``update()`` and is timed with it).
 
@@ -86,15 +87,16 @@ def car_values(path: Path, folder: Path) -> dict[str, str]:
 def bench_engines(
     path: Path, calls: int, warmup: int, threads: int, extra: dict[str, str] | None = None
 ) -> dict[str, object]:
-    """Both engines' timings on the same rows, in one run, and their ratio at p50/p99."""
+    """Every engine's timings on the same rows, in one run, and the ratios at p50/p99."""
     out: dict[str, object] = {
         e: bench_update(path, calls, warmup, threads, {**(extra or {}), "engine": e})
-        for e in ("numpy", "torch")
+        for e in ("numba", "numpy", "torch")
     }
-    for q in ("p50_us", "p99_us"):
-        out[f"torch_over_numpy_{q.removesuffix('_us')}"] = (
-            out["torch"][q] / out["numpy"][q]  # type: ignore[index]
-        )
+    for e in ("numba", "numpy"):
+        for q in ("p50_us", "p99_us"):
+            out[f"torch_over_{e}_{q.removesuffix('_us')}"] = (
+                out["torch"][q] / out[e][q]  # type: ignore[index]
+            )
     return out
 
 

@@ -22,6 +22,7 @@ import multiprocessing
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -187,8 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sections",
         nargs="+",
-        choices=["simulator", "ros", "training", "inference", "soak"],
-        default=["simulator", "ros", "training", "inference"],
+        choices=["simulator", "ros", "training", "inference", "streaming", "soak"],
+        default=["simulator", "ros", "training", "inference", "streaming"],
         help="which benchmark sections to run (others keep their previous results); soak "
         "(sim + default estimator + 2 CPU-bound processes, --soak-seconds) only on request",
     )
@@ -223,17 +224,31 @@ def main(argv: list[str] | None = None) -> int:
         results["ros_runtime"] = ros
     if "training" in args.sections:
         results["training"] = bench_training()
+    # The engines' timings are for one thread: numpy's BLAS (OpenBLAS, also under numba's
+    # np.dot) would otherwise split an 80-unit step over both cores. A child process, as
+    # BLAS reads the setting when it loads.
+    one_thread = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    here = Path(__file__).resolve().parent
     if "inference" in args.sections:
-        from inference import main as inference_main  # imports torch: only when asked
-
         tmp = Path(tempfile.mkdtemp(prefix="sideslip-inference-")) / "inference.json"
-        inference_main(["--json", str(tmp)])
+        command = [sys.executable, str(here / "inference.py"), "--json", str(tmp)]
+        subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
         results["inference"] = json.loads(tmp.read_text())
+    if "streaming" in args.sections:
+        # The engine against the per-window torch path, idle and with two CPU-bound
+        # background processes (issue 10's ratio under load).
+        results["streaming"] = {}
+        for label, load in (("idle", 0), ("load2", 2)):
+            tmp = Path(tempfile.mkdtemp(prefix="sideslip-streaming-")) / "streaming.json"
+            command = [sys.executable, str(here / "streaming.py"), "--json", str(tmp)]
+            command += ["--load", str(load), "--note", label]
+            subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
+            results["streaming"][label] = json.loads(tmp.read_text())
     if "soak" in args.sections:
         from tools.soak import run as run_soak  # imports rclpy: only when asked for
 
         results["soak"] = run_soak(args.soak_seconds, load=2)
-    for section in ("simulator", "ros_runtime", "training", "inference", "soak"):
+    for section in ("simulator", "ros_runtime", "training", "inference", "streaming", "soak"):
         if section in results:
             results[section]["measured"] = {  # type: ignore[index]
                 "date_utc": results["date_utc"],

@@ -10,21 +10,25 @@ hits all paths alike:
   float64: exact up to float64 rounding);
 * ``push_float32``: the same engine in float32 arithmetic (rounds like torch, not bit
   for bit);
+* ``push_numba``: the same engine with the compiled float32 kernel (the default engine,
+  ``engine=numba``);
 * ``update``: ``PsoLstmBackend.update`` with ``engine=torch`` on the window, as
   bench/inference.py times it (the model's inputs of the whole window, the prior,
   ``torch.lstm`` and the head);
-* ``update_numpy``: ``PsoLstmBackend.update`` with ``engine=numpy`` (the default): the
-  newest row's inputs, one ``push``, the prior;
+* ``update_numpy`` / ``update_numba``: ``PsoLstmBackend.update`` with ``engine=numpy``
+  / ``engine=numba`` (the default): the newest row's inputs, one ``push``, the prior;
 * ``torch_lstm``: the ``torch.lstm`` call plus head of that back-end alone, on the
   same float32 window (the network part that ``push`` replaces).
 
 The paths' outputs are compared on every timed sample: ``max_abs_dy``, the largest
 difference of the network output y (z-scored β) between ``push`` and both torch paths
 (update's β̂ less the prior, and the torch call); ``max_abs_dy_float32`` the same for
-``push_float32``. Models that read the car's parameters or the UKF observer are refused
-(this bench feeds them neither). ``--random bilstm:2x64`` adds random-weight models.
+``push_float32``, ``max_abs_dy_numba`` for ``push_numba`` and ``update_numba``. Models
+that read the car's parameters or the UKF observer are refused (this bench feeds them
+neither). ``--random bilstm:2x64`` adds random-weight models. ``--load N`` runs N
+CPU-bound background processes (``while True: pass``) for the whole measurement.
 
-    OMP_NUM_THREADS=1 python bench/streaming.py --json /tmp/streaming.json
+    OMP_NUM_THREADS=1 python bench/streaming.py --json /tmp/streaming.json [--load 2]
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import dataclasses
 import json
 import os
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -83,8 +88,10 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
     w = meta.window_steps
     backend = PsoLstmBackend({"model_file": str(path), "threads": 1, "engine": "torch"}, w)
     streaming = PsoLstmBackend({"model_file": str(path), "threads": 1, "engine": "numpy"}, w)
+    compiled = PsoLstmBackend({"model_file": str(path), "threads": 1, "engine": "numba"}, w)
     engine = StreamingLstm(tensors, meta)
     engine32 = StreamingLstm(tensors, meta, dtype=np.float32)
+    fused = StreamingLstm(tensors, meta, kernel="numba")
     net = backend._window_net  # the torch back-end's network, set to one thread
     torch = net._torch
 
@@ -101,8 +108,8 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
     weights, state = net._weights, net._state
     head = net._head
     bi = meta.directions == 2
-    times = np.zeros((5, calls), dtype=np.int64)
-    max_dy = max_dy32 = 0.0
+    times = np.zeros((7, calls), dtype=np.int64)
+    max_dy = max_dy32 = max_dy_fused = 0.0
     clock = time.perf_counter_ns
     for i, row in enumerate(rows):
         window.push(row, i * STEP_NS)
@@ -111,10 +118,14 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         t1 = clock()
         y32 = engine32.push(inputs[i])
         t6 = clock()
+        y_fused = fused.push(inputs[i])
+        t9 = clock()
         r, s = window.rows(), window.stamps_ns()
         t7 = clock()
         streamed = streaming.update(r, s)  # called on every row, as the estimator does
         t8 = clock()
+        streamed_fused = compiled.update(r, s)
+        t10 = clock()
         if not window.full:
             continue
         t2 = clock()
@@ -129,7 +140,7 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         k = i - (w - 1) - warmup
         if k < 0:
             continue
-        times[:, k] = (t1 - t0, t6 - t1, t3 - t2, t5 - t4, t8 - t7)
+        times[:, k] = (t1 - t0, t6 - t1, t3 - t2, t5 - t4, t8 - t7, t9 - t6, t10 - t8)
         prior = 0.0
         if meta.prior != "none":
             prior = prior_of_window(columns_of_rows(r, meta.channels), meta.prior, meta.dt_s)
@@ -139,7 +150,10 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         y_streamed = (streamed.beta_rad - prior - meta.beta_mean) / meta.beta_std
         max_dy = max(max_dy, abs(y - y_torch), abs(y - y_update), abs(y_streamed - y_update))
         max_dy32 = max(max_dy32, abs(y32 - y_torch), abs(y32 - y_update))
-    push, push32, update, core, update_numpy = (_stats(t) for t in times)
+        assert y_fused is not None and streamed_fused is not None
+        y_streamed_fused = (streamed_fused.beta_rad - prior - meta.beta_mean) / meta.beta_std
+        max_dy_fused = max(max_dy_fused, abs(y_fused - y_torch), abs(y_streamed_fused - y_update))
+    push, push32, update, core, update_numpy, push_numba, update_numba = (_stats(t) for t in times)
     return {
         "architecture": f"{meta.architecture} {meta.layers}x{meta.hidden_units}",
         "features": len(meta.features),
@@ -149,7 +163,13 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         "push_float32": push32,
         "update": update,
         "update_numpy": update_numpy,
+        "push_numba": push_numba,
+        "update_numba": update_numba,
         "torch_lstm": core,
+        "update_over_update_numba_p50": update["p50_us"] / update_numba["p50_us"],
+        "update_over_update_numba_p99": update["p99_us"] / update_numba["p99_us"],
+        "torch_lstm_over_push_numba_p50": core["p50_us"] / push_numba["p50_us"],
+        "torch_lstm_over_push_numba_p99": core["p99_us"] / push_numba["p99_us"],
         "update_over_update_numpy_p50": update["p50_us"] / update_numpy["p50_us"],
         "update_over_update_numpy_p99": update["p99_us"] / update_numpy["p99_us"],
         "update_over_push_p50": update["p50_us"] / push["p50_us"],
@@ -160,6 +180,8 @@ def bench_model(path: Path, calls: int, warmup: int) -> dict[str, object]:
         "update_over_push_float32_p99": update["p99_us"] / push32["p99_us"],
         "max_abs_dy": max_dy,
         "max_abs_dy_float32": max_dy32,
+        "max_abs_dy_numba": max_dy_fused,
+        "max_abs_dbeta_numba_rad": max_dy_fused * meta.beta_std,
     }
 
 
@@ -188,11 +210,50 @@ def main(argv: list[str] | None = None) -> int:
         default=list(DEFAULT_MODELS),
         help="artifacts to time (default: shipped pso_lstm_paper and fleet_lstm_paper)",
     )
+    p.add_argument(
+        "--load", type=int, default=0, help="CPU-bound background processes meanwhile (0)"
+    )
     args = p.parse_args(argv)
 
     import torch
 
     torch.set_num_threads(1)
+    burners = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)
+    ]
+    try:
+        results = measure(args)
+    finally:
+        for burner in burners:
+            burner.kill()
+            burner.wait()
+    report = {
+        "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "commit": git_commit(),
+        "machine": {
+            "cpu": cpu_model(),
+            "cores": os.cpu_count(),
+            "python": platform.python_version(),
+            "load_avg_1min": os.getloadavg()[0],
+        },
+        "numpy": np.__version__,
+        "torch": torch.__version__,
+        "threads": 1,
+        "background_cpu_bound_processes": args.load,
+        "note": args.note,
+        "command": " ".join(["python", "bench/streaming.py", *(argv or sys.argv[1:])]),
+        "models": results,
+    }
+    text = json.dumps(report, indent=2)
+    print(text)
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(text + "\n")
+    return 0
+
+
+def measure(args: argparse.Namespace) -> dict[str, object]:
+    """Every model's timings (:func:`bench_model`), by name."""
     results = {}
     for model in args.model:
         results[model.name] = bench_model(model, args.calls, args.warmup)
@@ -214,28 +275,7 @@ def main(argv: list[str] | None = None) -> int:
                 write_artifact(path, tensors, meta, force=True)
             results[f"random:{spec}"] = bench_model(path, args.calls, args.warmup)
             print(f"random:{spec}: {results[f'random:{spec}']}", file=sys.stderr)
-    report = {
-        "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "machine": {
-            "cpu": cpu_model(),
-            "cores": os.cpu_count(),
-            "python": platform.python_version(),
-            "load_avg_1min": os.getloadavg()[0],
-        },
-        "numpy": np.__version__,
-        "torch": torch.__version__,
-        "threads": 1,
-        "note": args.note,
-        "command": " ".join(["python", "bench/streaming.py", *(argv or sys.argv[1:])]),
-        "models": results,
-    }
-    text = json.dumps(report, indent=2)
-    print(text)
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + "\n")
-    return 0
+    return results
 
 
 if __name__ == "__main__":

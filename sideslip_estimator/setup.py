@@ -20,10 +20,10 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
     install_requires=["numpy", "PyYAML", "sideslip_msgs_py"],
-    # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (the model file reader;
-    # the default streaming engine is numpy), `[torch]` for pso_lstm's torch engine, `[ukf]`.
+    # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (the model file reader
+    # and numba for the compiled streaming engine), `[torch]` for the torch engine, `[ukf]`.
     extras_require={
-        "pso_lstm": ["safetensors"],
+        "pso_lstm": ["safetensors", "numba"],
         "torch": ["torch", "safetensors"],
         "ukf": ["filterpy", "scipy"],
     },

@@ -126,13 +126,14 @@ def test_the_torch_engine_equals_the_trained_network_bit_for_bit(
         assert math.isfinite(est.beta_rad) and est.beta_rad != 0.0
 
 
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
 @pytest.mark.parametrize(("architecture", "feature_set", "layers"), MODELS)
 def test_the_streaming_engine_equals_the_trained_network_within_1e_6_rad(
-    tmp_path: Path, architecture: str, feature_set: str, layers: int
+    tmp_path: Path, architecture: str, feature_set: str, layers: int, engine: str
 ) -> None:
     path = write_model(tmp_path / "m.safetensors", architecture, feature_set, layers=layers)
-    backend = create_backend("pso_lstm", {"model_file": str(path)}, WINDOW)
-    assert backend.engine == "numpy"
+    backend = create_backend("pso_lstm", {"model_file": str(path), "engine": engine}, WINDOW)
+    assert backend.engine == engine
     rows, stamps = make_rows(WINDOW + 60, seed=1)
     # As the estimator calls it: one new row per call, the window growing to full.
     for end in range(1, WINDOW + 40):
@@ -252,13 +253,27 @@ def test_the_streaming_engine_runs_the_shipped_default_without_torch() -> None:
         "import sys\n"
         "from sideslip_estimator.backends import create_backend\n"
         "b = create_backend('pso_lstm', {}, 100)\n"
-        "assert b.engine == 'numpy'\n"
+        "assert b.engine == 'numba'\n"
         "print('torch' in sys.modules)\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
     )
     assert out.stdout.strip() == "False"
+
+
+def test_without_numba_the_default_engine_falls_back_to_numpy() -> None:
+    code = (
+        "import sys\n"
+        "sys.modules['numba'] = None  # import numba now raises ImportError\n"
+        "from sideslip_estimator.backends import create_backend\n"
+        "b = create_backend('pso_lstm', {}, 100)\n"
+        "print(b.engine, 'engine numpy' in b.model_id)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert out.stdout.strip() == "numpy True"
 
 
 def test_importing_the_backends_does_not_import_torch() -> None:

@@ -15,7 +15,7 @@ import torch
 from numpy.lib.stride_tricks import sliding_window_view
 
 from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
-from sideslip_estimator.streaming import StreamingLstm
+from sideslip_estimator.streaming import KERNELS, StreamingLstm
 from sideslip_msgs_py.artifact import (
     ArtifactError,
     ModelMetadata,
@@ -127,6 +127,9 @@ def test_every_window_equals_torch_from_a_zero_state(
     # float32 arithmetic: like torch's own rounding, not bit for bit.
     y32 = StreamingLstm.from_artifact(path, dtype=np.float32).run(rows)
     np.testing.assert_allclose(y32, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
+    # The compiled fused kernel (float32, rational tanh): within torch's tolerance too.
+    fused = StreamingLstm.from_artifact(path, kernel="numba").run(rows)
+    np.testing.assert_allclose(fused, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
 
 
 def test_a_short_window_fills_and_slides_like_a_long_one(tmp_path: Path) -> None:
@@ -150,6 +153,8 @@ def test_shipped_models_equal_torch_on_every_window(path: Path) -> None:
     np.testing.assert_allclose(y, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
     exact = torch_outputs(tensors, meta, rows, torch.float64)
     np.testing.assert_allclose(y, exact, rtol=0, atol=FLOAT64_ATOL)
+    fused = StreamingLstm.from_artifact(path, kernel="numba").run(rows)
+    np.testing.assert_allclose(fused, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
 
 
 @pytest.mark.parametrize("name", ["pso_lstm_paper", "fleet_lstm_paper"])
@@ -187,10 +192,13 @@ def test_shipped_model_gives_the_pso_lstm_backends_beta(name: str) -> None:
 # --- reset, faults, refusals --------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("kernel", KERNELS)
 @pytest.mark.parametrize(("architecture", "layers"), [("lstm", 2), ("bilstm", 1), ("bilstm", 2)])
-def test_reset_restarts_every_window(tmp_path: Path, architecture: str, layers: int) -> None:
+def test_reset_restarts_every_window(
+    tmp_path: Path, architecture: str, layers: int, kernel: str
+) -> None:
     path = random_model(tmp_path / "m.safetensors", architecture, layers, 8, window=20)
-    engine = StreamingLstm.from_artifact(path)
+    engine = StreamingLstm.from_artifact(path, kernel=kernel)
     rows = z_rows(70, 6, seed=4)
     engine.run(rows[:33])
     engine.reset()
@@ -199,17 +207,21 @@ def test_reset_restarts_every_window(tmp_path: Path, architecture: str, layers: 
     assert engine.push(rows[52]) is not None
     engine.reset()
     np.testing.assert_array_equal(
-        engine.run(rows[33:]), StreamingLstm.from_artifact(path).run(rows[33:])
+        engine.run(rows[33:]), StreamingLstm.from_artifact(path, kernel=kernel).run(rows[33:])
     )
 
 
-def test_a_nan_row_gives_nan_for_exactly_the_windows_holding_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize("kernel", KERNELS)
+@pytest.mark.parametrize("bad", [np.nan, np.inf, 1e39])
+def test_a_nan_row_gives_nan_for_exactly_the_windows_holding_it(
+    tmp_path: Path, kernel: str, bad: float
+) -> None:
     w = 10
     path = random_model(tmp_path / "m.safetensors", "lstm", 2, 8, window=w)
     rows = z_rows(40, 6, seed=5)
-    clean = StreamingLstm.from_artifact(path).run(rows)
-    rows[15, 2] = np.nan
-    y = StreamingLstm.from_artifact(path).run(rows)
+    clean = StreamingLstm.from_artifact(path, kernel=kernel).run(rows)
+    rows[15, 2] = bad  # 1e39 overflows float32
+    y = StreamingLstm.from_artifact(path, kernel=kernel).run(rows)
     # Window j holds rows j .. j + w − 1.
     holds = (np.arange(len(y)) <= 15) & (np.arange(len(y)) + w - 1 >= 15)
     assert np.isnan(y[holds]).all()
@@ -231,6 +243,8 @@ def test_tensors_that_do_not_match_the_metadata_are_refused(tmp_path: Path) -> N
         StreamingLstm(tensors, meta)
     with pytest.raises(ValueError, match="float64 or float32"):
         StreamingLstm(tensors, meta, dtype=np.float16)
+    with pytest.raises(ValueError, match="kernel must be one of"):
+        StreamingLstm(tensors, meta, kernel="cuda")
 
 
 def test_the_module_does_not_import_torch() -> None:
