@@ -12,7 +12,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 from ros_support import Probe, RosDomain, Spawner, next_domain
+
+# No per-example deadline: the first example of a property test may include numba
+# compiling the kernel under test (an empty cache after any edit of a compiled module),
+# and wall time on a shared 2-core machine says nothing about correctness.
+settings.register_profile("sideslip", deadline=None)
+settings.load_profile("sideslip")
 
 
 @pytest.fixture

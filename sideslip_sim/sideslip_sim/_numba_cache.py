@@ -3,7 +3,9 @@
 numba invalidates a cached function only when *its own* file changes, not when a
 function it calls (in another module) does: after an edit to the tyre model, the cached
 step loop in simulate.py would keep running the old tyre code. Keying the cache folder
-by a digest of every module with compiled code makes any edit start a fresh cache.
+by a digest of every module with compiled code makes any edit start a fresh cache. That
+includes modules whose constants compiled code reads: numba freezes globals at compile time,
+so tire.py (the ``I_<KEY>`` coefficient indices) is listed although it compiles nothing.
 Must run before those modules are imported (sideslip_sim/__init__.py does it first).
 A user's own NUMBA_CACHE_DIR is respected.
 """
@@ -14,7 +16,14 @@ import hashlib
 import os
 from pathlib import Path
 
-COMPILED_MODULES = ("tire.py", "dynamics.py", "driver.py", "simulate.py")
+COMPILED_MODULES = (
+    "tire.py",
+    "inline_math.py",
+    "tire_forces.py",
+    "dynamics.py",
+    "driver.py",
+    "simulate.py",
+)
 
 
 def configure() -> Path | None:

@@ -34,8 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
-from sideslip_sim.tire import (
-    TireParams,
+from sideslip_sim.tire import TireParams
+from sideslip_sim.tire_forces import (
     combined_forces4,
     relaxation_lengths,
     rolling_resistance_coefficient,

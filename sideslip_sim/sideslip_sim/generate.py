@@ -42,7 +42,7 @@ from sideslip_sim.presets import (
 )
 from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
 from sideslip_sim.simulate import DT_S, SimResult, SimulationError, simulate
-from sideslip_sim.tir import TirError
+from sideslip_sim.tir_file import TirError
 from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
 

@@ -31,16 +31,6 @@ from sideslip_sim.driver import PathBuilder, iso_double_lane_change
 from sideslip_sim.single_track import SingleTrack
 from sideslip_sim.vehicle import GRAVITY_MPS2, VehicleParams
 
-FAMILIES = (
-    "straight",
-    "double_lane_change",
-    "sine_steer",
-    "sweep_steer",
-    "cornering",
-    "random_steer",
-    "step_steer",
-    "scenario",
-)
 SCENARIOS = ("scen1", "scen2", "scen3", "scen4")
 
 # Lead-in before open-loop steering starts [s]: the run starts in straight-line equilibrium.
@@ -290,6 +280,9 @@ _BUILDERS: dict[str, BuildFn] = {
     "step_steer": _build_step,
     "scenario": _build_scenario,
 }
+# The manoeuvre families, in the order above: one per builder, so a family cannot be
+# accepted by Maneuver without a program to run it.
+FAMILIES: tuple[str, ...] = tuple(_BUILDERS)
 
 
 def build_program(m: Maneuver, vehicle: VehicleParams, model: SingleTrack, dt_s: float) -> Program:

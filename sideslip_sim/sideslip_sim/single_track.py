@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sideslip_sim.axle_tires import axle_tires
-from sideslip_sim.tire import TireParams, cornering_stiffness
+from sideslip_sim.tire import TireParams
+from sideslip_sim.tire_forces import cornering_stiffness
 from sideslip_sim.vehicle import VehicleParams
 
 

@@ -33,7 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sideslip_sim.tire import TireParams, combined_forces, relaxation_lengths
+from sideslip_sim.tire import TireParams
+from sideslip_sim.tire_forces import combined_forces, relaxation_lengths
 from sideslip_sim.vehicle import VehicleParams
 
 FIT_MAX_SLIP_DEG = 15.0

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 from numba import njit
 
 try:
-    from sideslip_sim import tire
+    from sideslip_sim import inline_math, tire, tire_forces
 except ImportError:  # package not installed yet: use the source tree
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sideslip_sim"))
-    from sideslip_sim import tire
+    from sideslip_sim import inline_math, tire, tire_forces
 
 PARAMS = tire.TireParams.from_tir()
 COEF = PARAMS.coefficients()
@@ -28,7 +28,7 @@ mus = st.floats(min_value=0.05, max_value=1.5)
 
 
 def forces(fz, kappa, tan_alpha, mu=1.0, coef=COEF):
-    return tire.combined_forces(coef, fz, kappa, tan_alpha, mu)
+    return tire_forces.combined_forces(coef, fz, kappa, tan_alpha, mu)
 
 
 def peak_fy(fz, mu=1.0, coef=COEF):
@@ -65,10 +65,13 @@ def test_kernels_are_callable_from_other_njit_code():
     def four_wheels(coef, fz):
         total = 0.0
         for _ in range(4):
-            fx, fy = tire.combined_forces(coef, fz, 0.02, 0.03, 1.0)
-            total += fx + fy + tire.cornering_stiffness(coef, fz)
-            total += tire.longitudinal_stiffness(coef, fz) + tire.relaxation_lengths(coef, fz)[0]
-            total += tire.rolling_resistance_coefficient(coef)
+            fx, fy = tire_forces.combined_forces(coef, fz, 0.02, 0.03, 1.0)
+            total += fx + fy + tire_forces.cornering_stiffness(coef, fz)
+            total += (
+                tire_forces.longitudinal_stiffness(coef, fz)
+                + tire_forces.relaxation_lengths(coef, fz)[0]
+            )
+            total += tire_forces.rolling_resistance_coefficient(coef)
         return total
 
     assert math.isfinite(four_wheels(COEF, 4000.0))
@@ -78,9 +81,9 @@ def test_kernels_are_callable_from_other_njit_code():
 
 
 def test_shipped_tyre_has_passenger_car_numbers_at_nominal_load():
-    mu_x, mu_y = tire.friction_coefficients(COEF, FZ0)
+    mu_x, mu_y = tire_forces.friction_coefficients(COEF, FZ0)
     assert 0.9 <= mu_y <= 1.2 and 1.0 <= mu_x <= 1.4
-    assert 40e3 <= tire.cornering_stiffness(COEF, FZ0) <= 90e3
+    assert 40e3 <= tire_forces.cornering_stiffness(COEF, FZ0) <= 90e3
     peak, alpha_peak, alphas, fy = peak_fy(FZ0)
     assert peak == pytest.approx(mu_y * FZ0, rel=1e-6)
     # The book tyre has a flat top (C_y = 1.193): 95 % of the peak by 5-10 deg, the
@@ -91,16 +94,19 @@ def test_shipped_tyre_has_passenger_car_numbers_at_nominal_load():
 
 
 def test_relaxation_lengths_are_positive_and_lifted_wheel_gets_the_floor():
-    sigma_kappa, sigma_alpha = tire.relaxation_lengths(COEF, FZ0)
+    sigma_kappa, sigma_alpha = tire_forces.relaxation_lengths(COEF, FZ0)
     assert sigma_kappa == pytest.approx(0.215, abs=0.01)
     assert sigma_alpha == pytest.approx(0.383, abs=0.01)
-    assert tire.relaxation_lengths(COEF, 0.0) == (tire.SIGMA_MIN_M, tire.SIGMA_MIN_M)
+    assert tire_forces.relaxation_lengths(COEF, 0.0) == (
+        tire_forces.SIGMA_MIN_M,
+        tire_forces.SIGMA_MIN_M,
+    )
     for fz in (1.0, 100.0, 2e3, 8e3, 1e6):
-        assert min(tire.relaxation_lengths(COEF, fz)) >= tire.SIGMA_MIN_M
+        assert min(tire_forces.relaxation_lengths(COEF, fz)) >= tire_forces.SIGMA_MIN_M
 
 
 def test_rolling_resistance_coefficient_is_qsy1():
-    assert tire.rolling_resistance_coefficient(COEF) == pytest.approx(0.01)
+    assert tire_forces.rolling_resistance_coefficient(COEF) == pytest.approx(0.01)
 
 
 # -------------------------------------------------------------------- symmetry
@@ -154,7 +160,7 @@ def test_zero_friction_gives_exactly_zero():
 @pytest.mark.parametrize("mu", [0.3, 1.0])
 @pytest.mark.parametrize("fz", [1000.0, 4000.0, 8000.0])
 def test_resultant_stays_inside_the_friction_limit(fz, mu):
-    mu_x, mu_y = tire.friction_coefficients(COEF, fz)
+    mu_x, mu_y = tire_forces.friction_coefficients(COEF, fz)
     limit = 1.05 * max(mu_x, mu_y) * fz * mu
     grid = np.concatenate([-np.geomspace(1e-4, 3.0, 40), [0.0], np.geomspace(1e-4, 3.0, 40)])
     for kappa in grid:
@@ -172,9 +178,9 @@ def test_resultant_stays_inside_the_friction_limit(fz, mu):
 @settings(max_examples=300)
 def test_outputs_are_finite_for_extreme_inputs(fz, kappa, tan_alpha, mu):
     assert all(math.isfinite(v) for v in forces(fz, kappa, tan_alpha, mu))
-    assert math.isfinite(tire.cornering_stiffness(COEF, fz, mu))
-    assert math.isfinite(tire.longitudinal_stiffness(COEF, fz))
-    assert all(math.isfinite(v) for v in tire.relaxation_lengths(COEF, fz))
+    assert math.isfinite(tire_forces.cornering_stiffness(COEF, fz, mu))
+    assert math.isfinite(tire_forces.longitudinal_stiffness(COEF, fz))
+    assert all(math.isfinite(v) for v in tire_forces.relaxation_lengths(COEF, fz))
 
 
 # ------------------------------------------------------------- combined slip
@@ -199,7 +205,7 @@ def test_longitudinal_force_falls_as_slip_angle_grows():
 
 def test_friction_coefficient_falls_with_load():
     loads_n = np.linspace(500.0, 12000.0, 50)
-    mu = np.array([tire.friction_coefficients(COEF, fz) for fz in loads_n])
+    mu = np.array([tire_forces.friction_coefficients(COEF, fz) for fz in loads_n])
     assert np.all(np.diff(mu[:, 0]) < 0.0) and np.all(np.diff(mu[:, 1]) < 0.0)
     peaks = np.array([peak_fy(fz)[0] / fz for fz in (2000.0, 4000.0, 6000.0)])
     assert np.all(np.diff(peaks) < 0.0)
@@ -207,7 +213,7 @@ def test_friction_coefficient_falls_with_load():
 
 def test_cornering_stiffness_grows_sub_linearly_with_load():
     loads_n = np.linspace(500.0, 8000.0, 40)
-    stiffness = np.array([tire.cornering_stiffness(COEF, fz) for fz in loads_n])
+    stiffness = np.array([tire_forces.cornering_stiffness(COEF, fz) for fz in loads_n])
     assert np.all(np.diff(stiffness) > 0.0)
     assert np.all(np.diff(stiffness / loads_n) < 0.0)  # per newton of load: falls
 
@@ -215,9 +221,15 @@ def test_cornering_stiffness_grows_sub_linearly_with_load():
 @pytest.mark.parametrize("fz", [1500.0, 4000.0, 7000.0])
 def test_slip_stiffnesses_are_the_slopes_at_zero_slip(fz):
     h = 1e-7
-    assert forces(fz, 0.0, h)[1] / h == pytest.approx(tire.cornering_stiffness(COEF, fz), 1e-5)
-    assert forces(fz, h, 0.0)[0] / h == pytest.approx(tire.longitudinal_stiffness(COEF, fz), 1e-5)
-    assert tire.cornering_stiffness(COEF, fz, 0.4) == tire.cornering_stiffness(COEF, fz)
+    assert forces(fz, 0.0, h)[1] / h == pytest.approx(
+        tire_forces.cornering_stiffness(COEF, fz), 1e-5
+    )
+    assert forces(fz, h, 0.0)[0] / h == pytest.approx(
+        tire_forces.longitudinal_stiffness(COEF, fz), 1e-5
+    )
+    assert tire_forces.cornering_stiffness(COEF, fz, 0.4) == tire_forces.cornering_stiffness(
+        COEF, fz
+    )
 
 
 def test_forces_grow_in_proportion_to_load_beyond_the_fitted_range():
@@ -278,9 +290,11 @@ def same_force(got, want):
 def test_combined_forces4_equals_four_scalar_calls(fz, kappa, tan_alpha, mu, curved):
     coef = COEF_CURVED if curved else COEF
     fx, fy = np.full(4, np.nan), np.full(4, np.nan)
-    tire.combined_forces4(coef, np.array(fz), np.array(kappa), np.array(tan_alpha), mu, fx, fy)
+    tire_forces.combined_forces4(
+        coef, np.array(fz), np.array(kappa), np.array(tan_alpha), mu, fx, fy
+    )
     for i in range(4):
-        want_x, want_y = tire.combined_forces(coef, fz[i], kappa[i], tan_alpha[i], mu)
+        want_x, want_y = tire_forces.combined_forces(coef, fz[i], kappa[i], tan_alpha[i], mu)
         assert same_force(fx[i], want_x) and same_force(fy[i], want_y), (i, fx[i], fy[i])
         if fz[i] <= 0.0 or mu <= 0.0:
             assert fx[i] == 0.0 and fy[i] == 0.0
@@ -291,14 +305,17 @@ def test_combined_forces4_takes_strided_and_overlapping_arrays():
     kappa = np.array([0.05, -0.2, 0.1, -2.0])
     tan_alpha = np.array([-0.1, 0.02, 0.3, 0.5])
     want = [
-        tire.combined_forces(COEF, *args, 0.7) for args in zip(fz, kappa, tan_alpha, strict=True)
+        tire_forces.combined_forces(COEF, *args, 0.7)
+        for args in zip(fz, kappa, tan_alpha, strict=True)
     ]
     strided = np.zeros((3, 8))
     strided[:, ::2] = fz, kappa, tan_alpha
     fx, fy = np.zeros(4), np.zeros(4)
-    tire.combined_forces4(COEF, strided[0, ::2], strided[1, ::2], strided[2, ::2], 0.7, fx, fy)
+    tire_forces.combined_forces4(
+        COEF, strided[0, ::2], strided[1, ::2], strided[2, ::2], 0.7, fx, fy
+    )
     inout = np.concatenate([fz, kappa, tan_alpha])  # fx over kappa, fy over fz
-    tire.combined_forces4(COEF, inout[:4], inout[4:8], inout[8:], 0.7, inout[4:8], inout[:4])
+    tire_forces.combined_forces4(COEF, inout[:4], inout[4:8], inout[8:], 0.7, inout[4:8], inout[:4])
     for i, (want_x, want_y) in enumerate(want):
         assert same_force(fx[i], want_x) and same_force(fy[i], want_y)
         assert inout[4 + i] == fx[i] and inout[i] == fy[i]
@@ -310,10 +327,10 @@ def test_combined_forces4_takes_strided_and_overlapping_arrays():
 
 def test_inline_math_kernels_match_libm():
     x = np.concatenate([np.linspace(-50.0, 50.0, 20001), np.geomspace(1e-12, 1e12, 2000)])
-    assert max(abs(tire._atan(v) - math.atan(v)) for v in x) < 1e-15
-    assert max(abs(tire._atan(-v) + tire._atan(v)) for v in x) == 0.0
+    assert max(abs(inline_math.poly_atan(v) - math.atan(v)) for v in x) < 1e-15
+    assert max(abs(inline_math.poly_atan(-v) + inline_math.poly_atan(v)) for v in x) == 0.0
     theta = np.linspace(-math.pi, math.pi, 20001)
-    assert max(abs(tire._sin(t) - math.sin(t)) for t in theta) < 1e-15
-    assert max(abs(tire._cos(t) - math.cos(t)) for t in theta) < 1e-15
+    assert max(abs(inline_math.poly_sin(t) - math.sin(t)) for t in theta) < 1e-15
+    assert max(abs(inline_math.poly_cos(t) - math.cos(t)) for t in theta) < 1e-15
     e = np.linspace(-16.0, 16.0, 20001)
-    assert max(abs(tire._exp(v) / math.exp(v) - 1.0) for v in e) < 1e-12
+    assert max(abs(inline_math.poly_exp(v) / math.exp(v) - 1.0) for v in e) < 1e-12

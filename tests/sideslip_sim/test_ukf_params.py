@@ -11,7 +11,8 @@ import yaml
 
 from sideslip_estimator.backends import UkfParams
 from sideslip_sim.single_track import SingleTrack
-from sideslip_sim.tire import load_tire, relaxation_lengths
+from sideslip_sim.tire import load_tire
+from sideslip_sim.tire_forces import relaxation_lengths
 from sideslip_sim.ukf_params import (
     axle_lateral_force_n,
     fit_axle,
