@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-PACKAGES := sideslip_msgs_py sideslip_sim sideslip_estimator training
+PACKAGES := sideslip_msgs_py sideslip_sim sideslip_bags sideslip_estimator training
 DEMO_OUT ?= data/paper-test
 
 .PHONY: venv test lint format demo bench constraints clean

@@ -31,8 +31,6 @@ setup(
             # `ros2 run sideslip_sim sim_node` and the pip console script are one program.
             "sim_node = sideslip_sim.node:main",
             "sideslip-sim = sideslip_sim.node:main",
-            "sideslip-record = sideslip_sim.tools.record:main",
-            "sideslip-play = sideslip_sim.tools.play:main",
         ],
     },
 )

@@ -16,7 +16,7 @@ Layout of a bag written here (what ``ros2 bag info/play`` and rosbags accept;
   No sidecar file is needed.
 
 Reading starts in :mod:`.bag_raw` (:func:`open_raw_bag`, re-exported here and shared
-with the player, ``sideslip_sim.tools.bagsource``): the bag's topics with their offered
+with the player, ``sideslip_bags.bagsource``): the bag's topics with their offered
 QoS, and its serialised messages in log-time order. :func:`read_bag` then aligns the
 samples on the IMU stamp: each IMU message forms one sample with the latest
 /vehicle/twist and /vehicle/steering message stamped at or before it (and the latest

@@ -7,7 +7,7 @@ rosbags cannot open (a recorder killed before writing the summary, a copy cut sh
 read record by record with the ``mcap`` reader, up to each file's first damaged record,
 and marked ``truncated`` with notes saying where it stopped. Nothing is decoded here:
 :func:`sideslip_msgs_py.bag.read_bag` decodes and aligns the samples, and the player
-(``sideslip_sim.tools.bagsource``) republishes the bytes as they are.
+(``sideslip_bags.bagsource``) republishes the bytes as they are.
 
 The run's parameters travel in rosbag2's ``custom_data``, which :meth:`RawBag.custom_data`
 reads from metadata.yaml or, for a bare .mcap, from its ``rosbag2`` metadata record.

@@ -3,6 +3,8 @@
 Nodes turn a :class:`QosSpec` into an ``rclpy.qos.QoSProfile`` (the enum values are the
 lower-case names rclpy and rosbag2 use), and the bag writer records it as the topic's
 ``offered_qos_profiles`` so that ``ros2 bag play`` offers the same QoS again.
+:func:`rosbags_qos` is the one conversion to rosbags' form of an offered profile, for a
+:class:`QosSpec` and for any other :class:`QosProfile` (the recorder's offered QoS).
 
 Choice of profiles: the 400 Hz sensor streams and the ground truth use the sensor-data
 profile (best effort, keep last 5, like rclpy's ``qos_profile_sensor_data``): a late sample
@@ -16,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Final, Protocol
 
 from . import topics
 from .errors import UnknownTopicError
@@ -92,29 +94,67 @@ class QosSpec:
 
     def to_rosbags(self) -> Qos:
         """The profile as a ``rosbags.interfaces.Qos`` (what rosbags' Writer takes)."""
-        from rosbags.interfaces import (  # lazy: rosbags is only needed for bags
-            Qos,
-            QosDurability,
-            QosHistory,
-            QosLiveliness,
-            QosReliability,
-            QosTime,
-        )
+        return rosbags_qos(self)
 
-        def qtime(ns: int) -> QosTime:
-            return QosTime(**_sec_nsec(ns))
 
-        return Qos(
-            history=QosHistory[self.history.name],
-            depth=self.depth,
-            reliability=QosReliability[self.reliability.name],
-            durability=QosDurability[self.durability.name],
-            deadline=qtime(self.deadline_ns),
-            lifespan=qtime(self.lifespan_ns),
-            liveliness=QosLiveliness[self.liveliness.name],
-            liveliness_lease_duration=qtime(self.liveliness_lease_duration_ns),
-            avoid_ros_namespace_conventions=self.avoid_ros_namespace_conventions,
-        )
+class QosProfile(Protocol):
+    """Any description of one QoS profile: rosbag2 v9 policy names and durations in ns.
+
+    Policies are lower-case names (``"reliable"``, ``"keep_last"``, and also
+    ``"unknown"`` or ``"best_available"`` where a publisher offered them); durations are
+    nanoseconds, 0 meaning "unspecified". :class:`QosSpec` is one.
+    """
+
+    @property
+    def history(self) -> str: ...
+    @property
+    def depth(self) -> int: ...
+    @property
+    def reliability(self) -> str: ...
+    @property
+    def durability(self) -> str: ...
+    @property
+    def deadline_ns(self) -> int: ...
+    @property
+    def lifespan_ns(self) -> int: ...
+    @property
+    def liveliness(self) -> str: ...
+    @property
+    def liveliness_lease_duration_ns(self) -> int: ...
+    @property
+    def avoid_ros_namespace_conventions(self) -> bool: ...
+
+
+def rosbags_qos(profile: QosProfile) -> Qos:
+    """``profile`` as a ``rosbags.interfaces.Qos``: one entry of a connection's offered QoS
+    profiles, what rosbags' Writer records and its Reader gives back.
+
+    Raises:
+        KeyError: a policy name that rosbags does not know.
+    """
+    from rosbags.interfaces import (  # lazy: rosbags is only needed for bags
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    def qtime(ns: int) -> QosTime:
+        return QosTime(**_sec_nsec(ns))
+
+    return Qos(
+        history=QosHistory[profile.history.upper()],
+        depth=profile.depth,
+        reliability=QosReliability[profile.reliability.upper()],
+        durability=QosDurability[profile.durability.upper()],
+        deadline=qtime(profile.deadline_ns),
+        lifespan=qtime(profile.lifespan_ns),
+        liveliness=QosLiveliness[profile.liveliness.upper()],
+        liveliness_lease_duration=qtime(profile.liveliness_lease_duration_ns),
+        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
+    )
 
 
 def _sec_nsec(ns: int) -> dict[str, int]:

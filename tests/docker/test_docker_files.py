@@ -23,14 +23,14 @@ ROOT = Path(__file__).resolve().parents[2]
 DOCKERFILE = ROOT / "docker" / "Dockerfile"
 COMPOSE = ROOT / "docker" / "compose.yaml"
 DOCKERIGNORE = ROOT / ".dockerignore"
-PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_estimator")
+PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_bags", "sideslip_estimator")
 INSTALL = PurePosixPath("/opt/sideslip/install")
 # What only a build needs; none of it belongs in the final image.
 BUILD_TOOLS = ("build-essential", "gcc", "g++", "colcon", "python3-pip", "python3-dev", "git")
 SERVICE_EXECUTABLES = {
     "sim": ("sideslip_sim", "sim_node"),
     "estimator": ("sideslip_estimator", "estimator_node"),
-    "recorder": ("sideslip_sim", "sideslip-record"),
+    "recorder": ("sideslip_bags", "sideslip-record"),
 }
 
 
@@ -175,7 +175,7 @@ def test_entrypoint_sources_the_workspace_and_path_has_the_executables() -> None
     assert final.args_of("ENTRYPOINT") == ['["/sideslip_entrypoint.sh"]']
     path = next(e for e in final.args_of("ENV") if e.startswith("PATH="))
     path_dirs = path.split()[0].removeprefix("PATH=").split(":")
-    for pkg in ("sideslip_sim", "sideslip_estimator"):
+    for pkg in ("sideslip_sim", "sideslip_bags", "sideslip_estimator"):
         assert f"{INSTALL}/{pkg}/lib/{pkg}" in path_dirs, f"{pkg}'s executables not on PATH"
 
 

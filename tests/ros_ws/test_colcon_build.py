@@ -21,7 +21,7 @@ from package_support import console_scripts
 
 ROOT = Path(__file__).resolve().parents[2]
 WORKSPACE = ROOT / "ros_ws"
-PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_estimator")
+PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_bags", "sideslip_estimator")
 COLCON = Path(sys.executable).parent / "colcon"
 # Files the launch files and nodes look up under share/<pkg>/ at run time.
 REQUIRED_SHARE_FILES = {
@@ -34,7 +34,8 @@ REQUIRED_SHARE_FILES = {
 }
 # Console scripts the docs, launch files and compose file name; setup.py may add more.
 REQUIRED_SCRIPTS = {
-    "sideslip_sim": {"sideslip-generate", "sim_node", "sideslip-sim", "sideslip-record"},
+    "sideslip_sim": {"sideslip-generate", "sim_node", "sideslip-sim"},
+    "sideslip_bags": {"sideslip-record", "sideslip-play"},
     "sideslip_estimator": {"estimator_node", "sideslip-estimator"},
 }
 BUILD_TIMEOUT_S = 120
@@ -110,7 +111,7 @@ def built(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFacto
     return mode, base / "install", env, base
 
 
-def test_src_links_the_three_packages_relatively() -> None:
+def test_src_links_the_four_packages_relatively() -> None:
     for pkg in PACKAGES:
         link = WORKSPACE / "src" / pkg
         assert link.is_symlink(), f"{link} should be a symlink to ../../{pkg}"
@@ -119,7 +120,7 @@ def test_src_links_the_three_packages_relatively() -> None:
         assert link.resolve() == (ROOT / pkg).resolve()
 
 
-def test_colcon_finds_three_ament_python_packages(tmp_path: Path) -> None:
+def test_colcon_finds_four_ament_python_packages(tmp_path: Path) -> None:
     result = subprocess.run(
         [str(COLCON), "--log-base", os.devnull, "list", "--base-paths", str(WORKSPACE / "src")],
         env=clean_env(tmp_path),

@@ -31,7 +31,7 @@ import yaml
 from package_support import console_scripts
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_estimator")
+PACKAGES = ("sideslip_msgs_py", "sideslip_sim", "sideslip_bags", "sideslip_estimator")
 LAUNCH_FILES = {
     "sim_estimator": ROOT / "sideslip_estimator/launch/sim_estimator.launch.xml",
     "play_estimator": ROOT / "sideslip_estimator/launch/play_estimator.launch.xml",
@@ -70,7 +70,7 @@ def declared_parameters(package: str) -> dict[str, object]:
 
 
 def launch_files() -> list[Path]:
-    """Every launch file in the three packages (those named above and any added later)."""
+    """Every launch file in our packages (those named above and any added later)."""
     return sorted(p for pkg in PACKAGES for p in (ROOT / pkg / "launch").glob("*.launch.xml"))
 
 
@@ -293,7 +293,7 @@ def test_launch_arguments_and_their_defaults() -> None:
 
 @pytest.mark.parametrize("force", ["false", "true", "True", "0", "1"])
 def test_sim_record_passes_force_to_the_recorder(force: str, tmp_path: Path) -> None:
-    from sideslip_sim.tools import record
+    from sideslip_bags import record
 
     _node, args = the_one(
         LAUNCH_FILES["sim_record"], "sideslip-record", out=str(tmp_path / "bag"), force=force
@@ -318,8 +318,8 @@ def test_sim_record_does_not_hang_when_the_recorder_exits() -> None:
 
 @pytest.mark.parametrize("clock", ["true", "false"])
 def test_play_estimator_player_waits_for_the_estimator_inputs(clock: str, tmp_path: Path) -> None:
+    from sideslip_bags import play
     from sideslip_msgs_py import topics
-    from sideslip_sim.tools import play
 
     path = LAUNCH_FILES["play_estimator"]
     _node, args = the_one(path, "sideslip-play", bag=str(tmp_path / "bag"), clock=clock)

@@ -2,7 +2,7 @@
 
 :func:`plan_playback` checks the options against the bag (topics and remaps that name
 bag topics, message types that have a Python class) and picks each publisher's QoS:
-the bag's recorded offers (:func:`~.offers.publisher_qos`), else the contract QoS of a
+the bag's recorded offers (:func:`~.offered_qos.publisher_qos`), else the contract QoS of a
 contract topic, else reliable keep-last 10; ``--reliable`` then makes every topic
 reliable with a deep history.
 """
@@ -17,9 +17,9 @@ from sideslip_msgs_py import topics as contract
 from sideslip_msgs_py.qos import QosSpec
 
 from .bagsource import BagSource
-from .cli import message_class
 from .errors import OptionError
-from .offers import publisher_qos, reliable
+from .msgtypes import message_class
+from .offered_qos import publisher_qos, reliable
 
 DEFAULT_CLOCK_HZ = 100.0
 """``--clock`` without a value: /clock messages per second of wall time."""

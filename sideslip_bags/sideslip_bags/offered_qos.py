@@ -24,7 +24,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
-from sideslip_msgs_py.qos import Durability, History, Liveliness, QosSpec, Reliability
+from sideslip_msgs_py.qos import (
+    Durability,
+    History,
+    Liveliness,
+    QosSpec,
+    Reliability,
+    rosbags_qos,
+)
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Qos
@@ -62,7 +69,7 @@ _LIVELINESS: Final = (
 
 @dataclass(frozen=True, slots=True)
 class OfferedQos:
-    """One QoS profile as a publisher offered it.
+    """One QoS profile as a publisher offered it (a :class:`~sideslip_msgs_py.qos.QosProfile`).
 
     Policies are rosbag2 v9 names (``"reliable"``, ``"keep_last"``, ``"unknown"``, ...).
     Durations are in nanoseconds as offered: 0 is "unspecified", :data:`INFINITE_NS`
@@ -133,30 +140,7 @@ class OfferedQos:
 
     def to_rosbags(self) -> Qos:
         """As a ``rosbags.interfaces.Qos`` (what rosbags' Writer records)."""
-        from rosbags.interfaces import (
-            Qos,
-            QosDurability,
-            QosHistory,
-            QosLiveliness,
-            QosReliability,
-            QosTime,
-        )
-
-        def qtime(ns: int) -> QosTime:
-            sec, nsec = divmod(ns, _NS_PER_S)
-            return QosTime(sec=sec, nsec=nsec)
-
-        return Qos(
-            history=QosHistory[self.history.upper()],
-            depth=self.depth,
-            reliability=QosReliability[self.reliability.upper()],
-            durability=QosDurability[self.durability.upper()],
-            deadline=qtime(self.deadline_ns),
-            lifespan=qtime(self.lifespan_ns),
-            liveliness=QosLiveliness[self.liveliness.upper()],
-            liveliness_lease_duration=qtime(self.liveliness_lease_duration_ns),
-            avoid_ros_namespace_conventions=self.avoid_ros_namespace_conventions,
-        )
+        return rosbags_qos(self)
 
 
 def _policy(value: Any, names: Sequence[str], what: str) -> str:

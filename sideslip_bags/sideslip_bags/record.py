@@ -2,7 +2,7 @@
 
 The recorder watches the ROS graph and subscribes to each requested topic when its
 first publisher appears, with a QoS that matches what the publishers offer
-(:func:`~.offers.subscription_qos`), and records those offered profiles in the bag.
+(:func:`~.offered_qos.subscription_qos`), and records those offered profiles in the bag.
 Subscriptions are raw: each message's CDR bytes go into the bag unchanged, logged at
 the time the recorder takes it from DDS (system clock, ns; ``ros2 bag record`` does the
 same). Messages are written as they arrive and the bag is finished on SIGINT/SIGTERM
@@ -35,17 +35,11 @@ from sideslip_msgs_py.nodes.qos import to_rclpy
 from sideslip_msgs_py.nodes.runtime import StopFlag, run
 from sideslip_msgs_py.qos import QosSpec, Reliability
 
-from .bagsink import BagSink, check_recordable, jazzy_typestore, open_sink
-from .cli import (
-    check_positive,
-    contract_topics,
-    fail,
-    format_counts,
-    message_class,
-    split_ros_args,
-)
+from .bagsink import BagSink, open_sink
 from .errors import OptionError, ToolError
-from .offers import OfferedQos, all_reliable, describe, subscription_qos
+from .msgtypes import check_recordable, jazzy_typestore, message_class
+from .offered_qos import OfferedQos, all_reliable, describe, subscription_qos
+from .options import check_positive, contract_topics, fail, format_counts, split_ros_args
 from .reindex import reindex
 
 PROG: Final = "sideslip-record"

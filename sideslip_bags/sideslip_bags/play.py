@@ -30,17 +30,17 @@ from sideslip_msgs_py.nodes.qos import profile_for, to_rclpy
 from sideslip_msgs_py.nodes.runtime import StopFlag, run
 
 from .bagsource import BagSource, open_bag
-from .cli import (
+from .errors import ToolError
+from .msgtypes import message_class
+from .offered_qos import describe
+from .options import (
     check_non_negative,
     check_positive,
     fail,
     format_counts,
-    message_class,
     parse_remaps,
     split_ros_args,
 )
-from .errors import ToolError
-from .offers import describe
 from .playplan import DEFAULT_CLOCK_HZ, PlayOptions, PlayPlan, plan_playback
 from .schedule import Schedule
 

@@ -5,7 +5,7 @@ rosbag2 directory or a bare .mcap file, messages in log-time order, an intact ba
 streamed from disk on every pass, and a damaged MCAP file read record by record up to
 its first damaged record (:attr:`BagSource.truncated` says so and
 :attr:`BagSource.notes` says where it stopped). This module adds the player's view of
-the offered QoS (:class:`~.offers.OfferedQos`).
+the offered QoS (:class:`~.offered_qos.OfferedQos`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from sideslip_msgs_py.bag import RawBag, RawMessage, RawTopic, open_raw_bag
 
-from .offers import OfferedQos, parse_offered_qos_yaml
+from .offered_qos import OfferedQos, parse_offered_qos_yaml
 
 BagMessage = RawMessage
 """One serialised message: topic, log time [ns] and its CDR bytes."""

@@ -1,13 +1,14 @@
-"""Command-line pieces shared by ``sideslip-record`` and ``sideslip-play`` (no rclpy).
+"""Command-line options shared by ``sideslip-record`` and ``sideslip-play`` (no rclpy).
 
 Both tools accept ROS arguments (``--ros-args -r __node:=name -p use_sim_time:=true``)
 beside their own; :func:`split_ros_args` separates them the way rcl does, so argparse
-only sees ours and ``rclpy.init`` gets the whole command line.
+only sees ours and ``rclpy.init`` gets the whole command line. The rest checks option
+values (remaps, numbers, contract topics), turns a refused one into the one-line error
+and exit status :data:`EXIT_BAD_INPUT` (:func:`fail`), and formats the end-of-run counts.
 """
 
 from __future__ import annotations
 
-import importlib
 import math
 import sys
 from collections.abc import Iterable, Mapping, Sequence
@@ -15,7 +16,7 @@ from typing import Final
 
 from sideslip_msgs_py import topics as contract
 
-from .errors import OptionError, UnknownTypeError
+from .errors import OptionError
 
 EXIT_BAD_INPUT: Final = 2
 """Exit status for input we refuse (a one-line message on stderr says why)."""
@@ -81,25 +82,6 @@ def check_non_negative(value: float, option: str) -> float:
         msg = f"{option} must be a finite number >= 0, got {value}"
         raise OptionError(msg)
     return value
-
-
-def message_class(type_name: str) -> type:
-    """The Python message class of a ROS 2 type name: 'sensor_msgs/msg/Imu' → Imu.
-
-    Raises:
-        UnknownTypeError: a malformed name, or no installed package defines the type.
-    """
-    parts = type_name.split("/")
-    if len(parts) != 3 or not all(p.isidentifier() for p in parts):
-        msg = f"message type {type_name!r} is not of the form 'pkg/msg/Name'"
-        raise UnknownTypeError(msg)
-    package, kind, name = parts
-    try:
-        cls = getattr(importlib.import_module(f"{package}.{kind}"), name)
-    except (ImportError, AttributeError):
-        msg = f"message type {type_name!r}: no Python package defines it (is {package} installed?)"
-        raise UnknownTypeError(msg) from None
-    return cls
 
 
 def contract_topics(requested: Sequence[str] | None) -> dict[str, str]:

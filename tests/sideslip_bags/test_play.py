@@ -15,25 +15,25 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
-from sideslip_msgs_py import qos, topics
-from sideslip_msgs_py.bag import write_bag
-from sideslip_msgs_py.errors import NotABagError
-from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
-from sideslip_sim.tools import play
-from sideslip_sim.tools.bagsink import open_sink
-from sideslip_sim.tools.bagsource import open_bag
-from sideslip_sim.tools.cli import parse_remaps, split_ros_args
-from sideslip_sim.tools.errors import OptionError, UnknownTypeError
-from sideslip_sim.tools.offers import (
+from sideslip_bags import play
+from sideslip_bags.bagsink import open_sink
+from sideslip_bags.bagsource import open_bag
+from sideslip_bags.errors import OptionError, UnknownTypeError
+from sideslip_bags.offered_qos import (
     INFINITE_NS,
     RELIABLE_PLAY_DEPTH,
     OfferedQos,
     parse_offered_qos_yaml,
     publisher_qos,
 )
-from sideslip_sim.tools.playplan import PlayOptions, plan_playback
-from sideslip_sim.tools.schedule import Schedule
+from sideslip_bags.options import parse_remaps, split_ros_args
+from sideslip_bags.playplan import PlayOptions, plan_playback
+from sideslip_bags.schedule import Schedule
+from sideslip_msgs_py import qos, topics
+from sideslip_msgs_py.bag import write_bag
+from sideslip_msgs_py.errors import NotABagError
+from sideslip_msgs_py.nodes.qos import profile_for
+from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
 
 T0_NS = 1_700_000_000 * 10**9
 STEP_NS = 2_500_000  # 400 Hz
@@ -296,7 +296,7 @@ def test_bad_input_is_one_line_naming_it_and_exit_2(
 
 
 def test_unknown_type_error_names_type_and_package() -> None:
-    from sideslip_sim.tools.cli import message_class
+    from sideslip_bags.msgtypes import message_class
 
     assert message_class("std_msgs/msg/Float64") is Float64
     with pytest.raises(UnknownTypeError, match="nonexistent_msgs"):

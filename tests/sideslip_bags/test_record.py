@@ -19,12 +19,12 @@ from rclpy.qos import (
 from ros_support import BIN, wait_for
 from rosbags.rosbag2 import Reader
 
+from sideslip_bags import record
+from sideslip_bags.bagsink import open_sink
+from sideslip_bags.offered_qos import RECORD_DEPTH, OfferedQos, subscription_qos
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.bag import read_bag, write_bag
 from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
-from sideslip_sim.tools import record
-from sideslip_sim.tools.bagsink import open_sink
-from sideslip_sim.tools.offers import RECORD_DEPTH, OfferedQos, subscription_qos
 
 T0_NS = 1_700_000_000 * 10**9
 STEP_NS = 2_500_000  # 400 Hz

@@ -35,24 +35,8 @@ from .bagmeta import (
     metadata_document,
     write_metadata,
 )
-from .errors import UnknownTypeError
-from .offers import OfferedQos
-
-
-def jazzy_typestore() -> Any:
-    """rosbags' ROS 2 Jazzy typestore (message definitions and RIHS01 type hashes)."""
-    from rosbags.typesys import Stores, get_typestore
-
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
-def check_recordable(msgtype: str, typestore: Any) -> None:
-    """Raise :class:`UnknownTypeError` unless the typestore can describe ``msgtype``."""
-    try:
-        typestore.generate_msgdef(msgtype, ros_version=2)
-    except Exception:
-        msg = f"message type {msgtype!r} is not in the ROS 2 Jazzy typestore; cannot record it"
-        raise UnknownTypeError(msg) from None
+from .msgtypes import jazzy_typestore
+from .offered_qos import OfferedQos
 
 
 class BagSink:

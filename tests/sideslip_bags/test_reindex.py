@@ -18,12 +18,12 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64
 
+from sideslip_bags import record
+from sideslip_bags.bagmeta import IN_PROGRESS_KEY
+from sideslip_bags.reindex import reindex
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.bag import open_raw_bag, read_bag
 from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_sim.tools import record
-from sideslip_sim.tools.bagmeta import IN_PROGRESS_KEY
-from sideslip_sim.tools.reindex import reindex
 from sideslip_training.dataset import load_runs
 
 from .test_record import sample_bag
@@ -47,8 +47,8 @@ KILLED_SINK = """
 import os, signal, sys
 from pathlib import Path
 from rosbags.rosbag2 import Reader
-from sideslip_sim.tools.bagsink import open_sink
-from sideslip_sim.tools.offers import OfferedQos
+from sideslip_bags.bagsink import open_sink
+from sideslip_bags.offered_qos import OfferedQos
 
 source, out, flushed, written = Path(sys.argv[1]), Path(sys.argv[2]), *map(int, sys.argv[3:])
 sink = open_sink(out)
