@@ -1,5 +1,7 @@
-"""``sideslip-train``: bags → a trained, exported model (the PSO search is in
-:mod:`.search`, ``sideslip-evaluate`` in :mod:`.evaluate_cli`).
+"""``sideslip-train``: bags → a trained, exported model. This module parses the options
+and reports; what a call will do is resolved in :mod:`.train_plan` (data in
+:mod:`.training_data`), the PSO search is in :mod:`.search`, the refit and the model's
+metadata in :mod:`.final_model`, ``sideslip-evaluate`` in :mod:`.evaluate_cli`.
 
 The house CLI pattern: ``--help`` reads like a manual, progress bars on
 anything long, ``--out`` never overwritten without ``--force``, and bad input (empty
@@ -10,38 +12,28 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import shutil
 import sys
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, replace
-from datetime import UTC, datetime
+from collections.abc import Callable, Sequence
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from sideslip_msgs_py.artifact import ARCHITECTURES, ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
-from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS, input_set
-from sideslip_msgs_py.topic_map import TopicMap
-from sideslip_msgs_py.vehicle_description import VehicleDescription
+from sideslip_msgs_py.model_inputs import INPUT_SETS, PRIORS
 
-from . import __version__
 from .cli_errors import EXIT_BAD_INPUT, CliError
-from .config import DT_S, PROFILES, WINDOW_S, TrainProfile, profile
-from .dataset import DatasetError, Run, data_digest, load_runs
-from .export import export_model, load_model
-from .init_model import InitError, check_fit, load_init
-from .inputs import InputSpec
-from .normalize import Normalizer
-from .search import particle_threads, run_pso
-from .splits import split_in_time, split_runs
-from .trainer import EpochRecord, TrainConfig, TrainResult, pick_device, train_model
-from .windows import WindowIndex
-
-# --- sideslip-train --------------------------------------------------------------------
+from .config import PROFILES
+from .dataset import DatasetError
+from .export import export_model
+from .final_model import model_metadata, refit, wants_refit
+from .init_model import InitError
+from .run_folder import start_run_folder
+from .search import run_pso
+from .train_metrics import pooled_test_metrics, val_metrics
+from .train_plan import TrainPlan, plan_training, run_config
+from .trainer import EpochRecord, TrainResult, train_model
 
 
 def _train_parser() -> argparse.ArgumentParser:
@@ -211,466 +203,148 @@ def _train_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _check_out(args: argparse.Namespace) -> Path:
-    """Refuse outputs that exist without --force; return the run folder (not made yet)."""
-    out: Path = args.out
-    if out.suffix != ".safetensors":
-        raise CliError(f"--out {out}: must end in .safetensors")
-    if out.exists() and not (args.force or args.resume):
-        raise CliError(f"--out {out} exists; pass --force to replace it")
-    run_dir = args.run_dir or out.with_suffix(".run")
-    if args.resume:
-        if not (run_dir / "pso_state.json").exists():
-            raise CliError(f"--resume: no PSO state in {run_dir} (pso_state.json)")
-    elif run_dir.exists() and not args.force:
-        raise CliError(f"run folder {run_dir} exists; pass --force or --resume")
-    elif run_dir.exists() and any(run_dir.iterdir()) and not (run_dir / "config.json").exists():
-        # --force replaces a run folder, never an unrelated one (--run-dir . ...).
-        raise CliError(f"run folder {run_dir} is not a sideslip-train run folder; not replacing it")
-    return run_dir
+class _Stop(Exception):
+    """A failure once the run folder is made: its one-line message and the exit code."""
+
+    def __init__(self, message: str, exit_code: int) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code
 
 
-def _make_run_dir(run_dir: Path, resume: bool) -> None:
-    """Made only once the data has been accepted: a refused run leaves nothing behind."""
-    if run_dir.exists() and not resume:
-        shutil.rmtree(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-
-
-def _check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
-    for run in runs:
-        for name in channels:
-            column = np.asarray(getattr(run.samples, name))
-            if not np.isfinite(column).any():
-                raise CliError(f"feature {name} is missing from bag {run.path} (no finite value)")
-
-
-def _split_mode(args: argparse.Namespace, runs: Sequence[Run]) -> str:
-    """``bag`` or ``time``: ``auto`` takes bags apart when there are 3 or more."""
-    if args.split != "auto":
-        return str(args.split)
-    return "bag" if len({r.bag for r in runs}) >= 3 else "time"
-
-
-def _load(
-    args: argparse.Namespace,
-    prof: TrainProfile,
-    spec: InputSpec,
-    window: int,
-    log,
-    normalizer: Normalizer | None = None,
-):
-    """Runs for training, validation and test (the last may be empty), the statistics
-    (``normalizer``, or fitted on the training runs) and the window indices. Fractions
-    are of --data: test first, then validation."""
-    topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
-    load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
-    runs, report = load_runs(args.data, **load)
-    log(str(report))
-    mode = _split_mode(args, runs)
-    val_fraction = prof.val_fraction if args.val_fraction is None else args.val_fraction
-    test_runs: list[Run] = []
-    if args.test:
-        test_runs, test_report = load_runs(args.test, **load)
-        log(f"test: {test_report}")
-    elif args.test_fraction:
-        if mode == "time":
-            runs, test_runs = split_in_time(runs, args.test_fraction, "test")
-        else:
-            runs, test_runs = split_runs(runs, args.test_fraction, args.seed + 1)
-        val_fraction = val_fraction / (1.0 - args.test_fraction)
-    if args.val:
-        train_runs = runs
-        val_runs, val_report = load_runs(args.val, **load)
-        log(f"validation: {val_report}")
-    elif mode == "time":
-        train_runs, val_runs = split_in_time(runs, val_fraction, "val")
-    else:
-        train_runs, val_runs = split_runs(runs, val_fraction, args.seed)
-    checks = [(train_runs, val_runs, "--val")] if args.val else []
-    checks += [([*train_runs, *val_runs], test_runs, "--test")] if args.test else []
-    for ours, other, flag in checks:
-        shared = {r.path for r in ours} & {r.path for r in other}
-        if shared:
-            raise CliError(f"{flag} shares {len(shared)} bag(s) with --data, e.g. {min(shared)}")
-    log(
-        f"split by {mode}: {len(train_runs)} training, {len(val_runs)} validation, "
-        f"{len(test_runs)} test run(s)"
-    )
-    runs = [*train_runs, *val_runs]
-    _check_features(runs, spec.channels)
-    if spec.needs_observer:
-        from . import observer
-
-        assert spec.observer is not None
-        log(f"UKF observer over {len(runs)} run(s) (cached in {observer.cache_dir()})")
-        observer.precompute(
-            runs,
-            spec.observer,
-            spec.observer_params_file,
-            jobs=args.workers,
-            progress=not args.quiet,
-        )
-    if normalizer is None:
-        normalizer = Normalizer.fit(train_runs, spec, window)
-    stride = prof.stride
-    if args.stride is None:
-        # Little data (a recording of minutes): every window, not every 10th; big data
-        # (the fleet, over a million samples) keeps the profile's stride.
-        stride = min(prof.stride, max(1, sum(len(r) for r in train_runs) // SAMPLES_PER_STRIDE))
-    train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
-    val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
-    if len(train.ends) == 0 or len(val.ends) == 0:
-        raise CliError(
-            f"no windows of {window} samples: {len(train.ends)} for training, "
-            f"{len(val.ends)} for validation (bags too short?)"
-        )
-    log(
-        f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
-        f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
-    )
-    return runs, train_runs, val_runs, test_runs, normalizer, train, val, stride
-
-
-def sample_period_s(runs: Sequence[Run]) -> float:
-    """The bags' common sample period [s] (median stamp step); mixed rates are refused."""
-    periods = {
-        r.name: float(np.median(np.diff(r.samples.stamp_ns))) * 1e-9
-        for r in runs
-        if len(r.samples) > 1
-    }
-    if not periods:
-        raise CliError("no bag has two samples: no sample period")
-    common = float(np.median(list(periods.values())))
-    odd = [f"{n} ({p * 1e3:.2f} ms)" for n, p in periods.items() if abs(p / common - 1) > 0.02]
-    if odd:
-        raise CliError(
-            f"bags at another rate than {common * 1e3:.2f} ms: {', '.join(odd[:5])}; a model "
-            "sees a fixed step, train on one rate"
-        )
-    return common
-
-
-def _val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) -> dict[str, float]:
-    """Validation errors in degrees against the exact (float64) ground truth."""
-    import torch
-
-    est = np.empty(len(val.ends))
-    with torch.inference_mode():
-        for start in range(0, len(val.ends), 8192):
-            x, _ = val.batch(np.arange(start, min(start + 8192, len(val.ends))))
-            est[start : start + x.shape[0]] = result.model(torch.from_numpy(x)).numpy()
-    beta_hat = normalizer.invert_beta(est) + val.prior_rad[val.ends]
-    err = np.degrees(beta_hat - val.beta_rad[val.ends])
-    return {
-        "val_mae_deg": float(np.mean(np.abs(err))),
-        "val_rmse_deg": float(np.sqrt(np.mean(err**2))),
-        "val_me_deg": float(np.mean(err)),
-    }
-
-
-SAMPLES_PER_STRIDE = 100_000
-"""Without --stride, the stride is the profile's or one per this many training samples,
-whichever is smaller."""
-
-
-def _recorded_rate_hz(args: argparse.Namespace) -> float:
-    """The rate the bags were recorded at (the median over the first five), so that a
-    model runs at its car's own rate; within 1 % of the contract's 400 Hz, 400."""
-    from sideslip_msgs_py.bag import read_bag
-    from sideslip_msgs_py.resample import measured_step_s
-    from sideslip_msgs_py.topic_map import read_mapped_bag
-
-    from .dataset import find_bags
-
-    topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
-    steps = []
-    for path in find_bags(args.data)[:5]:
-        try:
-            samples = (
-                read_bag(path).samples
-                if topic_map is None
-                else read_mapped_bag(path, topic_map).samples
-            )
-        except Exception:  # an unreadable bag is reported by load_runs
-            continue
-        step = measured_step_s(samples.stamp_ns)
-        if step:
-            steps.append(step)
-    if not steps:
-        return 1.0 / DT_S
-    rate = 1.0 / float(np.median(steps))
-    return 1.0 / DT_S if abs(rate * DT_S - 1.0) <= 0.01 else round(rate, 1)
-
-
-def _window_steps(args: argparse.Namespace, step_s: float) -> int:
-    """The window in samples: --window-steps, or --window-s at the model's rate (the
-    horizon in seconds stays the same whatever the rate)."""
-    if args.window_steps is not None:
-        if args.window_steps < 2:
-            raise CliError(f"--window-steps must be >= 2, got {args.window_steps}")
-        return int(args.window_steps)
-    window_s = WINDOW_S if args.window_s is None else args.window_s
-    steps = round(window_s / step_s)
-    if not (math.isfinite(window_s) and steps >= 2):
-        raise CliError(f"--window-s {window_s:g} s is under two samples at {1 / step_s:g} Hz")
-    return steps
-
-
-def _test_metrics(model_path: Path, runs: Sequence[Run], log) -> dict[str, dict[str, float]]:
-    """The exported model and the baselines on the test runs, pooled over their samples."""
-    from .evaluate import evaluate_runs, model_label, pooled
-
-    net, meta = load_model(model_path)
-    traces = evaluate_runs(
-        runs,
-        [(model_label(meta), net, meta)],
-        window_steps=meta.window_steps,
-        dt_s=meta.dt_s,
-    )
-    out = {
-        name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}
-        for name, m in pooled(traces).items()
-    }
-    log(
-        "test (pooled over "
-        + f"{len(runs)} run(s)): "
-        + "; ".join(f"{n} MAE {v['mae_deg']:.4f} deg" for n, v in out.items())
-    )
-    return out
+def _error(err: object, exit_code: int) -> int:
+    print(f"sideslip-train: error: {err}", file=sys.stderr)
+    return exit_code
 
 
 def train_main(argv: Sequence[str] | None = None) -> int:
+    """``sideslip-train``; the exit code: 0, 2 for input a user can fix, 1 when the
+    training diverged or the model could not be written."""
     args = _train_parser().parse_args(argv)
     log = (lambda *_: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     started = time.perf_counter()
     try:
-        prof = profile(args.profile)
-        for name in ("max_epochs", "stride", "patience", "batch_size"):
-            value = getattr(args, name)
-            if value is not None:
-                if value < 1:
-                    flag = name.replace("_", "-")
-                    raise CliError(f"{name} must be >= 1 (--{flag}), got {value}")
-                prof = replace(prof, **{name: value})
-        for name in ("swarm_size", "iterations"):
-            value = getattr(args, name)
-            if value is not None:
-                if value < 1:
-                    raise CliError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
-                prof = replace(prof, pso=replace(prof.pso, **{name: value}))
-        for name in ("val_fraction", "test_fraction"):
-            value = getattr(args, name)
-            if value is not None and not 0.0 <= value < 1.0:
-                raise CliError(f"--{name.replace('_', '-')} must be in [0, 1), got {value}")
-        if (args.val_fraction or 0.0) + args.test_fraction >= 1.0:
-            raise CliError("--val-fraction + --test-fraction must leave data to train on")
-        init = load_init(args.init) if args.init else None
-        if init is None:
-            if args.model is None:
-                raise CliError("--model is required (or --init MODEL to fine-tune one)")
-            features = input_set(args.features or "paper")
-            args.prior = args.prior or "none"
-            if args.rate_hz is None:
-                args.rate_hz = _recorded_rate_hz(args)
-                log(f"model rate {args.rate_hz:g} Hz: the bags' own (--rate-hz to choose)")
-            hidden_units = (
-                prof.default_hidden_units if args.hidden_units is None else args.hidden_units
-            )
-            layers = prof.layers
-        else:
-            m = init.meta
-            given_window = (
-                _window_steps(args, m.dt_s)
-                if args.window_s is not None or args.window_steps is not None
-                else None
-            )
-            check_fit(
-                init,
-                architecture=args.model,
-                features=args.features,
-                prior=args.prior,
-                hidden_units=args.hidden_units,
-                rate_hz=args.rate_hz,
-                window_steps=given_window,
-                pso=args.pso,
-            )
-            args.model, args.prior, args.rate_hz = m.architecture, m.prior, 1.0 / m.dt_s
-            args.window_steps, args.window_s = m.window_steps, None
-            features, hidden_units, layers = tuple(m.features), m.hidden_units, m.layers
-        vehicle = VehicleDescription.load(args.vehicle) if args.vehicle else None
-        if vehicle is None and init is not None and init.meta.vehicle is not None:
-            vehicle = VehicleDescription.from_mapping(init.meta.vehicle)
-        if args.workers < 1:
-            raise CliError(f"--workers must be >= 1, got {args.workers}")
-        base = TrainConfig(
-            architecture=args.model,
-            hidden_units=hidden_units,
-            layers=layers,
-            learning_rate=(
-                prof.default_learning_rate if args.learning_rate is None else args.learning_rate
-            ),
-            max_epochs=prof.max_epochs,
-            patience=prof.patience,
-            batch_size=prof.batch_size,
-            seed=args.seed,
-            device=str(pick_device(args.device)),
-        )
-        if args.ray_address:
-            from .parallel import import_ray
-
-            import_ray()
-        run_dir = _check_out(args)
-        observer_file = str(args.observer_params) if args.observer_params else None
-        if not (math.isfinite(args.rate_hz) and 50.0 <= args.rate_hz <= 1000.0):
-            raise CliError(f"--rate-hz must be within 50-1000 Hz, got {args.rate_hz:g}")
-        step_s = 1.0 / args.rate_hz
-        window = _window_steps(args, step_s)
-        observer = init.meta.observer if init is not None else None
-        spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file)
-        keep = init.normalizer if init is not None and args.normalization == "keep" else None
-        runs, train_runs, val_runs, test_runs, normalizer, train, val, stride = _load(
-            args, prof, spec, window, log, normalizer=keep
-        )
-        dt_s = sample_period_s(runs)  # every bag now at step_s: a check, not a choice
+        plan = plan_training(args, log)
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
-        print(f"sideslip-train: error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-
-    config = {
-        "command": " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])]),
-        "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-        "profile": asdict(prof),
-        "train_config": asdict(base),
-        "features": list(features),
-        "prior": args.prior,
-        "observer": spec.observer,
-        "train_bags": [r.name for r in train_runs],
-        "val_bags": [r.name for r in val_runs],
-        "test_bags": [r.name for r in test_runs],
-        "split": _split_mode(args, train_runs + val_runs),
-        "window_steps": window,
-        "data_digest": data_digest(runs),
-        "normalizer": normalizer.to_dict(),
-        "sample_period_s": dt_s,
-        "particle_threads": particle_threads(args) if args.pso else None,
-        "sideslip_training": __version__,
-    }
-    config_path = run_dir / "config.json"
-    if args.resume:
-        # A resumed PSO must continue the same run: same data, split, statistics, model.
-        old = json.loads(config_path.read_text())
-        keys = (
-            "data_digest",
-            "features",
-            "prior",
-            "observer",
-            "train_bags",
-            "val_bags",
-            "normalizer",
-            "particle_threads",
+        return _error(err, EXIT_BAD_INPUT)
+    command = " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])])
+    config = run_config(args, command, plan)
+    try:
+        start_run_folder(plan.run_dir, config, resume=args.resume)
+    except CliError as err:  # --resume of a run started otherwise
+        return _error(err, EXIT_BAD_INPUT)
+    try:
+        result, pso_info = _train(args, plan, log)
+        result, metrics = _validate_and_refit(args, plan, config["split"], result, log)
+        meta = model_metadata(
+            plan,
+            result,
+            architecture=args.model,
+            normalization=args.normalization,
+            digest=config["data_digest"],
+            metrics=metrics,
+            pso_info=pso_info,
+            command=command,
+            wall_s=time.perf_counter() - started,
         )
-        changed = [
-            k
-            for k in (*keys, "train_config")
-            if old.get(k) != json.loads(json.dumps(config[k], default=str))
-        ]
-        if changed:
-            print(
-                f"sideslip-train: error: --resume: {run_dir} was started with other "
-                f"{', '.join(changed)}; resume with the original command",
-                file=sys.stderr,
-            )
-            return EXIT_BAD_INPUT
-    else:
-        _make_run_dir(run_dir, resume=False)
-        config_path.write_text(json.dumps(config, indent=2, default=str) + "\n")
+        _export(args.out, result, meta)
+    except _Stop as stop:
+        return _error(stop, stop.exit_code)
+    _warn_if_still_improving(result, metrics)
+    if plan.data.test_runs:
+        metrics["test"] = pooled_test_metrics(args.out, plan.data.test_runs, log)
+    total = time.perf_counter() - started
+    summary = {**metrics, "wall_s": total, "out": str(args.out), "run_dir": str(plan.run_dir)}
+    (plan.run_dir / "metrics.json").write_text(json.dumps(summary, indent=2) + "\n")
+    log(
+        f"wrote {args.out}: validation MAE {metrics['val_mae_deg']:.4f} deg, "
+        f"RMSE {metrics['val_rmse_deg']:.4f} deg, {total:.0f} s"
+    )
+    return 0
 
-    pso_info = None
+
+def _train(
+    args: argparse.Namespace, plan: TrainPlan, log: Callable[[str], None]
+) -> tuple[TrainResult, dict[str, Any] | None]:
+    """The selected training and the PSO record: PSO's best particle, or one training
+    (from --init's weights when fine-tuning)."""
+    data = plan.data
     if args.pso:
         from .pso import PsoError
 
         try:
-            result, pso_info = run_pso(args, prof, base, train, val, normalizer, run_dir, log)
+            return run_pso(
+                args,
+                plan.profile,
+                plan.base,
+                data.train,
+                data.val,
+                data.normalizer,
+                plan.run_dir,
+                log,
+            )
         except PsoError as err:  # e.g. a damaged or foreign pso_state.json on --resume
-            print(f"sideslip-train: error: {err}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-    else:
-        try:
-            state = init.net.state_dict() if init is not None else None
-            result = _train_one(base, train, val, normalizer, args.quiet, init_state=state)
-        except ValueError as err:  # diverged: no epoch to export
-            print(f"sideslip-train: error: {err}", file=sys.stderr)
-            return 1
-    (run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
-
-    metrics = {**_val_metrics(result, val, normalizer), "best_epoch": result.best_epoch}
-    refit = args.refit == "yes" or (
-        args.refit == "auto" and not args.pso and not args.val and config["split"] == "time"
-    )
-    if refit and not args.pso:
-        # The epoch count chosen on validation, now on all the data before the test part.
-        both = WindowIndex.build([*train_runs, *val_runs], spec, normalizer, window, stride)
-        log(
-            f"refit on training + validation ({len(both.ends)} windows), {result.best_epoch} epochs"
-        )
-        selection = result
-        result = train_model(
-            replace(base, max_epochs=result.best_epoch),
-            both,
-            val,
-            normalizer,
-            init_state=init.net.state_dict() if init is not None else None,
-            keep_last=True,
-        )
-        result.stopped_early = selection.stopped_early
-        result.history, selection_history = selection.history, result.history
-        metrics["refit_epochs"] = len(selection_history)
-        (run_dir / "refit_history.json").write_text(
-            json.dumps([asdict(r) for r in selection_history], indent=2) + "\n"
-        )
-    meta = ModelMetadata(
-        architecture=args.model,
-        hidden_units=result.model.config.hidden_units,
-        layers=result.model.config.layers,
-        features=tuple(features),
-        window_steps=window,
-        dt_s=dt_s,
-        feature_mean=tuple(float(v) for v in normalizer.mean),
-        feature_std=tuple(float(v) for v in normalizer.std),
-        beta_mean=float(normalizer.beta_mean),
-        beta_std=float(normalizer.beta_std),
-        training_data_digest=config["data_digest"],
-        metrics=metrics,
-        pso=pso_info,
-        prior=spec.prior,
-        vehicle=vehicle.to_dict() if vehicle is not None else None,
-        observer=dict(spec.observer) if spec.observer is not None else None,
-        created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
-        provenance={
-            **(
-                {
-                    "init": init.path.name,
-                    "init_data": init.meta.training_data_digest,
-                    "normalization": args.normalization,
-                }
-                if init is not None
-                else {}
-            ),
-            "command": config["command"],
-            "profile": prof.name,
-            "device": result.device,
-            "train_bags": len(train_runs),
-            "val_bags": len(val_runs),
-            "wall_s": round(time.perf_counter() - started, 1),
-            "sideslip_training": __version__,
-        },
-    )
+            raise _Stop(str(err), EXIT_BAD_INPUT) from err
     try:
-        export_model(args.out, result.model, meta, force=True)
+        result = _train_one(plan, args.quiet)
+    except ValueError as err:  # diverged: no epoch to export
+        raise _Stop(str(err), 1) from err
+    return result, None
+
+
+def _train_one(plan: TrainPlan, quiet: bool) -> TrainResult:
+    """One training with a progress bar over the epochs (on stderr, off with --quiet)."""
+    from tqdm import tqdm
+
+    cfg, data = plan.base, plan.data
+    bar = tqdm(total=cfg.max_epochs, unit="epoch", disable=quiet, file=sys.stderr)
+
+    def on_epoch(r: EpochRecord) -> None:
+        bar.set_postfix(val_mae_deg=f"{r.val_mae_deg:.4f}", win_per_s=f"{r.windows_per_s:.0f}")
+        bar.update()
+
+    try:
+        return train_model(
+            cfg,
+            data.train,
+            data.val,
+            data.normalizer,
+            on_epoch=on_epoch,
+            init_state=plan.init_state(),
+        )
+    finally:
+        bar.close()
+
+
+def _validate_and_refit(
+    args: argparse.Namespace,
+    plan: TrainPlan,
+    split: str,
+    result: TrainResult,
+    log: Callable[[str], None],
+) -> tuple[TrainResult, dict[str, Any]]:
+    """Write history.json and score the selected training on validation; when refitting,
+    the model trained again on training + validation (refit_history.json)."""
+    (plan.run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
+    data = plan.data
+    metrics = {**val_metrics(result, data.val, data.normalizer), "best_epoch": result.best_epoch}
+    if wants_refit(args.refit, pso=args.pso, val_given=bool(args.val), split=split):
+        # The epoch count chosen on validation, now on all the data before the test part.
+        result, refit_history = refit(result, plan, log, init_state=plan.init_state())
+        metrics["refit_epochs"] = len(refit_history)
+        (plan.run_dir / "refit_history.json").write_text(
+            json.dumps([asdict(r) for r in refit_history], indent=2) + "\n"
+        )
+    return result, metrics
+
+
+def _export(out: Path, result: TrainResult, meta: ModelMetadata) -> None:
+    try:
+        export_model(out, result.model, meta, force=True)
     except ArtifactError as err:
-        print(f"sideslip-train: error: {err}", file=sys.stderr)
-        return 1
+        raise _Stop(str(err), 1) from err
+
+
+def _warn_if_still_improving(result: TrainResult, metrics: dict[str, Any]) -> None:
     if result.best_epoch >= len(result.history) and not result.stopped_early:
         # Always said, also with --quiet: the model was still improving when stopped.
         print(
@@ -679,35 +353,3 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         metrics["still_improving"] = True
-    if test_runs:
-        metrics["test"] = _test_metrics(args.out, test_runs, log)
-    total = time.perf_counter() - started
-    summary = {**metrics, "wall_s": total, "out": str(args.out), "run_dir": str(run_dir)}
-    (run_dir / "metrics.json").write_text(json.dumps(summary, indent=2) + "\n")
-    log(
-        f"wrote {args.out}: validation MAE {metrics['val_mae_deg']:.4f} deg, "
-        f"RMSE {metrics['val_rmse_deg']:.4f} deg, {total:.0f} s"
-    )
-    return 0
-
-
-def _train_one(
-    cfg: TrainConfig,
-    train: WindowIndex,
-    val: WindowIndex,
-    normalizer: Normalizer,
-    quiet: bool,
-    init_state: Mapping[str, Any] | None = None,
-) -> TrainResult:
-    from tqdm import tqdm
-
-    bar = tqdm(total=cfg.max_epochs, unit="epoch", disable=quiet, file=sys.stderr)
-
-    def on_epoch(r: EpochRecord) -> None:
-        bar.set_postfix(val_mae_deg=f"{r.val_mae_deg:.4f}", win_per_s=f"{r.windows_per_s:.0f}")
-        bar.update()
-
-    try:
-        return train_model(cfg, train, val, normalizer, on_epoch=on_epoch, init_state=init_state)
-    finally:
-        bar.close()

@@ -1,0 +1,110 @@
+"""From the chosen training to the model that is exported: the optional refit on
+training + validation for the epoch count early stopping chose, and the metadata the
+artifact carries (inputs, statistics, metrics, provenance)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from datetime import UTC, datetime
+from typing import Any
+
+from sideslip_msgs_py.artifact import ModelMetadata
+
+from . import __version__
+from .train_plan import TrainPlan
+from .trainer import EpochRecord, TrainResult, train_model
+from .windows import WindowIndex
+
+
+def wants_refit(refit: str, *, pso: bool, val_given: bool, split: str) -> bool:
+    """Whether to refit (--refit ``yes``/``no``/``auto``); never after PSO, whose model
+    is the best particle's weights. ``auto`` refits a split in time without --val
+    bags: the validation part is then the stretch before the test, too good to leave out."""
+    return not pso and (refit == "yes" or (refit == "auto" and not val_given and split == "time"))
+
+
+def refit(
+    selection: TrainResult,
+    plan: TrainPlan,
+    log: Callable[[str], None],
+    init_state: Mapping[str, Any] | None = None,
+) -> tuple[TrainResult, list[EpochRecord]]:
+    """Train again on training + validation for ``selection.best_epoch`` epochs (from
+    ``init_state`` when fine-tuning), keeping the last epoch's weights.
+
+    Returns the refit result carrying the selection's history and early stop (what
+    chose the epoch count), and the refit's own epoch history.
+    """
+    data = plan.data
+    both = WindowIndex.build(
+        [*data.train_runs, *data.val_runs], plan.spec, data.normalizer, plan.window, data.stride
+    )
+    log(f"refit on training + validation ({len(both.ends)} windows), {selection.best_epoch} epochs")
+    result = train_model(
+        replace(plan.base, max_epochs=selection.best_epoch),
+        both,
+        data.val,
+        data.normalizer,
+        init_state=init_state,
+        keep_last=True,
+    )
+    result.stopped_early = selection.stopped_early
+    result.history, refit_history = selection.history, result.history
+    return result, refit_history
+
+
+def model_metadata(
+    plan: TrainPlan,
+    result: TrainResult,
+    *,
+    architecture: str,
+    normalization: str,
+    digest: str,
+    metrics: dict[str, Any],
+    pso_info: dict[str, Any] | None,
+    command: str,
+    wall_s: float,
+) -> ModelMetadata:
+    """The exported model's metadata: what the estimator needs to run it (inputs, window,
+    step [s], statistics, prior, car, observer) and how it was made (``digest`` of the
+    training data, metrics, PSO record, provenance with ``wall_s`` [s] so far)."""
+    normalizer, init = plan.data.normalizer, plan.init
+    spec, vehicle = plan.spec, plan.vehicle
+    return ModelMetadata(
+        architecture=architecture,
+        hidden_units=result.model.config.hidden_units,
+        layers=result.model.config.layers,
+        features=tuple(plan.features),
+        window_steps=plan.window,
+        dt_s=plan.dt_s,
+        feature_mean=tuple(float(v) for v in normalizer.mean),
+        feature_std=tuple(float(v) for v in normalizer.std),
+        beta_mean=float(normalizer.beta_mean),
+        beta_std=float(normalizer.beta_std),
+        training_data_digest=digest,
+        metrics=metrics,
+        pso=pso_info,
+        prior=spec.prior,
+        vehicle=vehicle.to_dict() if vehicle is not None else None,
+        observer=dict(spec.observer) if spec.observer is not None else None,
+        created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
+        provenance={
+            **(
+                {
+                    "init": init.path.name,
+                    "init_data": init.meta.training_data_digest,
+                    "normalization": normalization,
+                }
+                if init is not None
+                else {}
+            ),
+            "command": command,
+            "profile": plan.profile.name,
+            "device": result.device,
+            "train_bags": len(plan.data.train_runs),
+            "val_bags": len(plan.data.val_runs),
+            "wall_s": round(wall_s, 1),
+            "sideslip_training": __version__,
+        },
+    )

@@ -1,0 +1,241 @@
+"""The data of one ``sideslip-train`` call: which bags train, validate and test (split by
+bag or in time, never by window), the z-score statistics of the training part, the
+window indices, and the choices that follow from the bags: the rate they were recorded
+at, the window length in samples and the window stride.
+
+Input a user can fix (a feature the bags lack, bags shared between parts, no window)
+raises :class:`~.cli_errors.CliError`, its message naming the option.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+
+from sideslip_msgs_py.topic_map import TopicMap
+
+from .cli_errors import CliError
+from .config import DT_S, WINDOW_S
+from .dataset import Run, load_runs
+from .inputs import InputSpec
+from .normalize import Normalizer
+from .splits import split_in_time, split_runs
+from .windows import WindowIndex
+
+SAMPLES_PER_STRIDE: Final = 100_000
+"""Without --stride, the stride is the profile's or one per this many training samples,
+whichever is smaller."""
+
+
+@dataclass(frozen=True)
+class DataChoice:
+    """The bags and how to split them, as the command line gave them.
+
+    ``val`` and ``test`` are bags of their own (None: parts of ``data``); the fractions
+    are of ``data``, the test part taken first. ``split`` is ``auto``, ``bag`` or
+    ``time``; ``stride`` [samples] is None to choose it from the amount of data.
+    """
+
+    data: Sequence[str]
+    val: Sequence[str] | None
+    test: Sequence[str] | None
+    split: str
+    val_fraction: float
+    test_fraction: float
+    seed: int
+    topic_map: Path | None
+    stride: int | None
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """Runs of each part (``runs``: training + validation), the statistics and the
+    window indices of training and validation at ``stride`` [samples]."""
+
+    runs: list[Run]
+    train_runs: list[Run]
+    val_runs: list[Run]
+    test_runs: list[Run]
+    normalizer: Normalizer
+    train: WindowIndex
+    val: WindowIndex
+    stride: int
+
+
+def split_mode(split: str, runs: Sequence[Run]) -> str:
+    """``bag`` or ``time``: ``auto`` takes bags apart when there are 3 or more."""
+    if split != "auto":
+        return str(split)
+    return "bag" if len({r.bag for r in runs}) >= 3 else "time"
+
+
+def check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
+    """Refuse a run in which a channel the model reads has no finite value at all."""
+    for run in runs:
+        for name in channels:
+            column = np.asarray(getattr(run.samples, name))
+            if not np.isfinite(column).any():
+                raise CliError(f"feature {name} is missing from bag {run.path} (no finite value)")
+
+
+def _split(
+    choice: DataChoice, load: dict[str, Any], log: Callable[[str], None]
+) -> tuple[list[Run], list[Run], list[Run]]:
+    """Training, validation and test runs (the last may be empty)."""
+    runs, report = load_runs(choice.data, **load)
+    log(str(report))
+    mode = split_mode(choice.split, runs)
+    val_fraction = choice.val_fraction
+    test_runs: list[Run] = []
+    if choice.test:
+        test_runs, test_report = load_runs(choice.test, **load)
+        log(f"test: {test_report}")
+    elif choice.test_fraction:
+        if mode == "time":
+            runs, test_runs = split_in_time(runs, choice.test_fraction, "test")
+        else:
+            runs, test_runs = split_runs(runs, choice.test_fraction, choice.seed + 1)
+        # The validation fraction is of --data: of what the test part left, a larger share.
+        val_fraction = val_fraction / (1.0 - choice.test_fraction)
+    if choice.val:
+        train_runs = runs
+        val_runs, val_report = load_runs(choice.val, **load)
+        log(f"validation: {val_report}")
+    elif mode == "time":
+        train_runs, val_runs = split_in_time(runs, val_fraction, "val")
+    else:
+        train_runs, val_runs = split_runs(runs, val_fraction, choice.seed)
+    checks = [(train_runs, val_runs, "--val")] if choice.val else []
+    checks += [([*train_runs, *val_runs], test_runs, "--test")] if choice.test else []
+    for ours, other, flag in checks:
+        shared = {r.path for r in ours} & {r.path for r in other}
+        if shared:
+            raise CliError(f"{flag} shares {len(shared)} bag(s) with --data, e.g. {min(shared)}")
+    log(
+        f"split by {mode}: {len(train_runs)} training, {len(val_runs)} validation, "
+        f"{len(test_runs)} test run(s)"
+    )
+    return train_runs, val_runs, test_runs
+
+
+def load_training_data(
+    choice: DataChoice,
+    spec: InputSpec,
+    window: int,
+    *,
+    max_stride: int,
+    workers: int,
+    progress: bool,
+    log: Callable[[str], None],
+    normalizer: Normalizer | None = None,
+) -> TrainingData:
+    """Read and split the bags, compute the UKF observer's columns where the inputs read
+    them, and index the windows of ``window`` samples.
+
+    Args:
+        max_stride: the profile's stride [samples]; without ``choice.stride`` little
+            data gets a smaller one.
+        workers: processes for the UKF observer.
+        normalizer: statistics to keep (fine-tuning); None fits them on the training runs.
+    """
+    topic_map = TopicMap.load(choice.topic_map) if choice.topic_map else None
+    load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
+    train_runs, val_runs, test_runs = _split(choice, load, log)
+    runs = [*train_runs, *val_runs]
+    check_features(runs, spec.channels)
+    if spec.needs_observer:
+        from . import observer
+
+        assert spec.observer is not None
+        log(f"UKF observer over {len(runs)} run(s) (cached in {observer.cache_dir()})")
+        observer.precompute(
+            runs, spec.observer, spec.observer_params_file, jobs=workers, progress=progress
+        )
+    if normalizer is None:
+        normalizer = Normalizer.fit(train_runs, spec, window)
+    stride = choice.stride
+    if stride is None:
+        # Little data (a recording of minutes): every window, not every 10th; big data
+        # (the fleet, over a million samples) keeps the profile's stride.
+        stride = min(max_stride, max(1, sum(len(r) for r in train_runs) // SAMPLES_PER_STRIDE))
+    train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
+    val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
+    if len(train.ends) == 0 or len(val.ends) == 0:
+        raise CliError(
+            f"no windows of {window} samples: {len(train.ends)} for training, "
+            f"{len(val.ends)} for validation (bags too short?)"
+        )
+    log(
+        f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
+        f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
+    )
+    return TrainingData(runs, train_runs, val_runs, test_runs, normalizer, train, val, stride)
+
+
+def sample_period_s(runs: Sequence[Run]) -> float:
+    """The bags' common sample period [s] (median stamp step); mixed rates are refused."""
+    periods = {
+        r.name: float(np.median(np.diff(r.samples.stamp_ns))) * 1e-9
+        for r in runs
+        if len(r.samples) > 1
+    }
+    if not periods:
+        raise CliError("no bag has two samples: no sample period")
+    common = float(np.median(list(periods.values())))
+    odd = [f"{n} ({p * 1e3:.2f} ms)" for n, p in periods.items() if abs(p / common - 1) > 0.02]
+    if odd:
+        raise CliError(
+            f"bags at another rate than {common * 1e3:.2f} ms: {', '.join(odd[:5])}; a model "
+            "sees a fixed step, train on one rate"
+        )
+    return common
+
+
+def recorded_rate_hz(data: Sequence[str], topic_map: Path | None) -> float:
+    """The rate [Hz] the bags under ``data`` were recorded at (the median over the first
+    five), so that a model runs at its car's own rate; within 1 % of the contract's
+    400 Hz, 400."""
+    from sideslip_msgs_py.bag import read_bag
+    from sideslip_msgs_py.resample import measured_step_s
+    from sideslip_msgs_py.topic_map import read_mapped_bag
+
+    from .dataset import find_bags
+
+    mapping = TopicMap.load(topic_map) if topic_map else None
+    steps = []
+    for path in find_bags(data)[:5]:
+        try:
+            samples = (
+                read_bag(path).samples
+                if mapping is None
+                else read_mapped_bag(path, mapping).samples
+            )
+        except Exception:  # an unreadable bag is reported by load_runs
+            continue
+        step = measured_step_s(samples.stamp_ns)
+        if step:
+            steps.append(step)
+    if not steps:
+        return 1.0 / DT_S
+    rate = 1.0 / float(np.median(steps))
+    return 1.0 / DT_S if abs(rate * DT_S - 1.0) <= 0.01 else round(rate, 1)
+
+
+def window_steps(step_s: float, *, steps: int | None, seconds: float | None) -> int:
+    """The window in samples: ``steps`` (--window-steps), or ``seconds`` (--window-s,
+    default the paper's 0.25 s) at the model's step ``step_s`` [s]: the horizon in
+    seconds stays the same whatever the rate."""
+    if steps is not None:
+        if steps < 2:
+            raise CliError(f"--window-steps must be >= 2, got {steps}")
+        return int(steps)
+    window_s = WINDOW_S if seconds is None else seconds
+    n = round(window_s / step_s)
+    if not (math.isfinite(window_s) and n >= 2):
+        raise CliError(f"--window-s {window_s:g} s is under two samples at {1 / step_s:g} Hz")
+    return n
