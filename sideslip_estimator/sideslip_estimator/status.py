@@ -1,22 +1,27 @@
 """The estimator's health as one diagnostic: level, one-line message, key values.
 
-Pure: the node passes in what it observed (receive ages, wrong-type publishers, the
-core's counters and latencies) and publishes the result on /sideslip/status.
+Pure: the node reports what it sees to a :class:`StatusTracker` (arrivals, frames,
+publications; times passed in), which turns it into an :class:`Observation` once per
+status period; :func:`assess` makes the diagnostic the node publishes on /sideslip/status.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from typing import Any, Final
 
 import numpy as np
 
 from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 from sideslip_msgs_py.timing import RATE_HZ
 
-from .estimator import EstimatorStats
+from .estimator import Estimator, EstimatorStats
 
 LEVEL_NAMES = {DIAGNOSTIC_OK: "OK", DIAGNOSTIC_WARN: "WARN", DIAGNOSTIC_ERROR: "ERROR"}
+LOG_EVERY_S: Final = 5.0
+"""Repeated rejections of one kind are logged at most this often [s]."""
 
 
 @dataclass(frozen=True)
@@ -42,7 +47,9 @@ class Counts:
         )
 
     def __sub__(self, before: Counts) -> Counts:
-        return Counts(*(getattr(self, f.name) - getattr(before, f.name) for f in fields(self)))
+        return Counts(
+            **{f.name: getattr(self, f.name) - getattr(before, f.name) for f in fields(self)}
+        )
 
 
 @dataclass(frozen=True)
@@ -171,3 +178,134 @@ def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str)
         "last_rejection": stats.last_rejection or "-",
     }
     return Status(level, message, values)
+
+
+def input_publishers(
+    endpoints: Iterable[tuple[str, str, Iterable[Any]]],
+) -> tuple[dict[str, list[str]], list[str]]:
+    """Per input topic the nodes publishing the contract's type, and one line per
+    publisher of another type.
+
+    ``endpoints``: per input, its topic, the contract's type name and the publishers'
+    endpoint infos (``node_namespace``, ``node_name``, ``topic_type``, as rclpy's
+    ``get_publishers_info_by_topic`` gives them)."""
+    publishers: dict[str, list[str]] = {}
+    wrong = []
+    for topic, expected, infos in endpoints:
+        nodes = publishers.setdefault(topic, [])
+        for info in infos:
+            who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+            if info.node_name == "_NODE_NAME_UNKNOWN_":
+                who = "(a node not discovered yet)"
+            if info.topic_type == expected:
+                nodes.append(who)
+            else:
+                wrong.append(f"{topic}: {who} publishes {info.topic_type}, expected {expected}")
+    return publishers, wrong
+
+
+class StatusTracker:
+    """What the node saw between two status messages, and which findings it has logged.
+
+    The node reports arrivals and publications with the steady time ``now_s``
+    (``time.monotonic()``, seconds) and logs what the methods say is new; once per status
+    period :meth:`observe` gives the :class:`Observation` and starts the next period.
+    """
+
+    def __init__(
+        self,
+        stats: EstimatorStats,
+        input_topics: Iterable[str],
+        frame_id: str,
+        silence_timeout_s: float,
+    ) -> None:
+        self.frame_id = frame_id
+        """The contract's frame for the IMU and twist ("" = no check)."""
+        self.silence_timeout_s = silence_timeout_s
+        self.last_rx: dict[str, float | None] = dict.fromkeys(input_topics)
+        """Per input topic (as subscribed): steady time of the last arrival (None: never)."""
+        self.wrong_frames: dict[str, str] = {}  # topic -> the line reporting it
+        self._seen = Counts.of(stats)
+        self._latencies_s: list[float] = []
+        self._sigmas_rad: list[float] = []
+        self._last_imu: tuple[int, float] | None = None  # (stamp ns, steady s)
+        self._logged: dict[str, float] = {}  # rejection reason -> steady s of its last log
+        self._wrong_types_logged: set[str] = set()
+
+    def received(self, topic: str, now_s: float) -> None:
+        self.last_rx[topic] = now_s
+
+    def imu_received(self, stamp_ns: int, now_s: float) -> None:
+        self._last_imu = (stamp_ns, now_s)
+
+    def published(self, latency_s: float, variance_rad2: float) -> None:
+        """An estimate went out ``latency_s`` after its message arrived, with this variance of β̂."""
+        self._latencies_s.append(latency_s)
+        self._sigmas_rad.append(math.sqrt(variance_rad2))
+
+    def frame_mismatch(self, topic: str, frame_id: str) -> str | None:
+        """The line reporting a frame other than the contract's, the first time ``topic``
+        carries one (the frame is used as is); None otherwise."""
+        if frame_id == self.frame_id or not self.frame_id or topic in self.wrong_frames:
+            return None
+        line = (
+            f"{topic}: frame_id '{frame_id}', expected '{self.frame_id}' "
+            f"(used as if {self.frame_id})"
+        )
+        self.wrong_frames[topic] = line
+        return line
+
+    def rejection_due(self, reason: str, now_s: float) -> bool:
+        """Whether a rejection for ``reason`` is to be logged (at most every LOG_EVERY_S)."""
+        if now_s - self._logged.get(reason, -1e9) < LOG_EVERY_S:
+            return False
+        self._logged[reason] = now_s
+        return True
+
+    def new_wrong_types(self, lines: Iterable[str]) -> list[str]:
+        """The wrong-type lines not reported before (each is logged once)."""
+        new = [line for line in dict.fromkeys(lines) if line not in self._wrong_types_logged]
+        self._wrong_types_logged.update(new)
+        return new
+
+    def stamp_ns(self, ros_now_ns: int, now_s: float, wall_ns: int) -> int:
+        """The status stamp: the ROS time; with use_sim_time and no /clock (ROS time 0)
+        the newest IMU stamp plus the steady time since it arrived, so the stamps still
+        advance; before any IMU message the wall time."""
+        if ros_now_ns > 0:
+            return ros_now_ns
+        if self._last_imu is not None:
+            stamp, rx = self._last_imu
+            return stamp + round((now_s - rx) * 1e9)
+        return wall_ns
+
+    def observe(
+        self,
+        core: Estimator,
+        publishers: Mapping[str, Sequence[str]],
+        wrong_types: Sequence[str],
+        now_s: float,
+    ) -> Observation:
+        """What happened since the previous call; starts the next status period."""
+        counts = Counts.of(core.stats)
+        new, self._seen = counts - self._seen, counts
+        obs = Observation(
+            input_ages_s={
+                t: (None if rx is None else now_s - rx) for t, rx in self.last_rx.items()
+            },
+            wrong_types=wrong_types,
+            silence_timeout_s=self.silence_timeout_s,
+            window_fill=core.fill,
+            latencies_s=self._latencies_s,
+            new=new,
+            publishers=publishers,
+            wrong_frames=list(self.wrong_frames.values()),
+            input_rate_hz=core.input_rate_hz,
+            expected_rate_hz=core.expected_rate_hz,
+            rate_refused=core.rate_refused,
+            held=core.held,
+            future_stamps=core.stats.future_stamps,
+            sigmas_rad=self._sigmas_rad,
+        )
+        self._latencies_s, self._sigmas_rad = [], []
+        return obs

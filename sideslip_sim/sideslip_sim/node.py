@@ -22,17 +22,17 @@ import rclpy.node
 
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.messages import RclpyMessages
-from sideslip_msgs_py.nodes.parameters import declare
 from sideslip_msgs_py.nodes.qos import profile_for
+from sideslip_msgs_py.nodes.ros_parameters import declare
 from sideslip_msgs_py.nodes.runtime import StopFlag, run, wants_help
 from sideslip_msgs_py.outputs import clock_message
-from sideslip_msgs_py.parameters import ParameterSpec, help_text
+from sideslip_msgs_py.parameter_spec import ParameterSpec, help_text
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_msgs_py.timing import RATE_HZ
 from sideslip_sim.maneuvers import ManeuverError
 from sideslip_sim.sensors import noise_profile
 from sideslip_sim.stream import ManeuverSpec, SampleStream, select_runs
-from sideslip_sim.tir import TirError
+from sideslip_sim.tir_file import TirError
 from sideslip_sim.vehicle import VehicleFileError, load_vehicle
 
 NODE_NAME = "sideslip_sim"

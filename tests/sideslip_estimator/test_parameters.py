@@ -13,8 +13,8 @@ import sideslip_sim.node as sim_node
 from sideslip_estimator.backends import BACKENDS
 from sideslip_estimator.estimator import EstimatorParams
 from sideslip_estimator.inputs import InputLimits
-from sideslip_estimator.parameters import PARAMETERS, estimator_params
-from sideslip_msgs_py.parameters import ParameterSpec, help_text
+from sideslip_estimator.node_parameters import PARAMETERS, estimator_params
+from sideslip_msgs_py.parameter_spec import ParameterSpec, help_text
 from sideslip_sim.sensors import NOISE_PROFILES
 from sideslip_sim.stream import select_runs
 from sideslip_sim.vehicle import shipped_vehicles

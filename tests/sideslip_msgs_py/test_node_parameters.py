@@ -15,9 +15,9 @@ from rclpy.parameter import Parameter
 
 import sideslip_sim.node as sim_node
 from sideslip_estimator.backends import BACKENDS
-from sideslip_estimator.parameters import PARAMETERS as ESTIMATOR_PARAMETERS
-from sideslip_msgs_py.nodes.parameters import ParameterTypeError, declare
-from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_estimator.node_parameters import PARAMETERS as ESTIMATOR_PARAMETERS
+from sideslip_msgs_py.nodes.ros_parameters import ParameterTypeError, declare
+from sideslip_msgs_py.parameter_spec import ParameterSpec
 
 # (node, prefix, specs): what each node declares, the estimator's back-ends under their name.
 DECLARED: list[tuple[str, str, tuple[ParameterSpec, ...]]] = [

@@ -11,7 +11,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.parameter_spec import ParameterSpec
 
 
 class BackendError(ValueError):

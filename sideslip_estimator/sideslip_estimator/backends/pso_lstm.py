@@ -80,7 +80,7 @@ from sideslip_msgs_py.model_inputs import (
     input_matrix,
     prior_of_window,
 )
-from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.features import channel_indices
-from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.parameter_spec import ParameterSpec
 
 from .base import BackendError, Estimate, parameter_values, positive_values
 from .params_file import check_keys, read_params_file

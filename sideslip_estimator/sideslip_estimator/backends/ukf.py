@@ -57,7 +57,7 @@ import numpy.typing as npt
 
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
-from sideslip_msgs_py.parameters import ParameterSpec
+from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.timing import STEP_S
 
 from .base import BackendError, Estimate, parameter_values, positive_values

@@ -1,4 +1,4 @@
-"""Declare :class:`~sideslip_msgs_py.parameters.ParameterSpec` lists on an rclpy node."""
+"""Declare :class:`~sideslip_msgs_py.parameter_spec.ParameterSpec` lists on an rclpy node."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..parameters import ParameterSpec
+from ..parameter_spec import ParameterSpec
 
 
 class ParameterTypeError(ValueError):
