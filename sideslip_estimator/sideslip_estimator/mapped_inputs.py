@@ -42,10 +42,15 @@ def mapped_inputs(path: str, backend: Backend) -> MappedInputs | None:
     classes = {}
     for topic, name in types.items():
         package, _, type_name = name.partition("/msg/")
-        try:
-            classes[topic] = (getattr(importlib.import_module(f"{package}.msg"), type_name), name)
-        except (ImportError, AttributeError, ValueError):
-            raise ValueError(
-                f"topic_map_file: message type {name} of {topic} is not installed"
-            ) from None
+        cls = None
+        # An empty or dotted package would make import_module a relative import (a
+        # TypeError), and a name that is no class (a module, a dunder) no message type.
+        if package.isidentifier() and type_name.isidentifier() and not type_name.startswith("_"):
+            try:
+                cls = getattr(importlib.import_module(f"{package}.msg"), type_name)
+            except (ImportError, AttributeError, ValueError):
+                cls = None
+        if not isinstance(cls, type):
+            raise ValueError(f"topic_map_file: message type {name} of {topic} is not installed")
+        classes[topic] = (cls, name)
     return LiveMapper(topic_map), classes

@@ -1,19 +1,28 @@
-"""Node parameters as data: typed defaults, the core parameters built from them, and the
-shipped config YAMLs that must list exactly the declared parameters with their defaults."""
+"""Node parameters as data: typed defaults, the node's and the core's parameters built from
+them, ``--help``, and the shipped config YAMLs that must list exactly the declared
+parameters with their defaults."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import pytest
 import yaml
+from hypothesis import given
+from hypothesis import strategies as st
 
 import sideslip_sim.node as sim_node
 from sideslip_estimator.backends import BACKENDS
 from sideslip_estimator.estimator import EstimatorParams
 from sideslip_estimator.inputs import InputLimits
-from sideslip_estimator.node_parameters import PARAMETERS, estimator_params
+from sideslip_estimator.node_parameters import (
+    PARAMETERS,
+    NodeParams,
+    estimator_params,
+    help_page,
+)
 from sideslip_msgs_py.parameter_spec import ParameterSpec, help_text
 from sideslip_sim.sensors import NOISE_PROFILES
 from sideslip_sim.stream import select_runs
@@ -141,6 +150,133 @@ def test_declared_values_reach_the_core_parameters() -> None:
 def test_bad_value_is_a_value_error_naming_the_parameter(name: str, value: object) -> None:
     with pytest.raises(ValueError, match=name.removeprefix("limits.")):
         estimator_params(_defaults() | {name: value})
+
+
+# --- one home per default ---------------------------------------------------------------------
+
+
+def _dataclass_defaults() -> dict[str, object]:
+    """What each declared name configures, with the default its dataclass gives it."""
+    node, core, limits = NodeParams(), EstimatorParams(), InputLimits()
+    return {
+        **{f.name: getattr(node, f.name) for f in dataclasses.fields(node) if f.name != "core"},
+        **{f.name: getattr(core, f.name) for f in dataclasses.fields(core) if f.name != "limits"},
+        **{f"limits.{f.name}": getattr(limits, f.name) for f in dataclasses.fields(limits)},
+    }
+
+
+def test_every_dataclass_field_is_declared_and_nothing_else() -> None:
+    # A new field of NodeParams, EstimatorParams or InputLimits must get a parameter.
+    names = [p.name for p in PARAMETERS]
+    assert len(names) == len(set(names)), "a parameter is declared twice"
+    assert sorted(names) == sorted(_dataclass_defaults())
+
+
+@pytest.mark.parametrize("spec", PARAMETERS, ids=lambda p: p.name)
+def test_every_declared_default_is_the_default_of_the_dataclass_field_it_sets(
+    spec: ParameterSpec,
+) -> None:
+    expected = _dataclass_defaults()[spec.name]
+    assert spec.default == expected and type(spec.default) is type(expected)
+
+
+# --- the node's parameters from declared values -----------------------------------------------
+
+
+def test_declared_defaults_build_the_default_node_params() -> None:
+    params = NodeParams.from_values(_defaults())
+    assert params == NodeParams()
+    assert params.core == EstimatorParams()
+
+
+def test_declared_values_reach_the_node_params() -> None:
+    values = _defaults() | {
+        "backend": "kinematic",
+        "topic_map_file": "my_car.yaml",
+        "frame_id": "imu_link",
+        "silence_timeout_s": 0.3,
+        "status_rate_hz": 5.0,
+        "velocity_sigma_mps": 0.5,
+        "window_steps": 40,
+        "input_rate_hz": 100.0,
+        "limits.stl_m": 0.4,
+    }
+    params = NodeParams.from_values(values)
+    assert params == NodeParams(
+        backend="kinematic",
+        topic_map_file="my_car.yaml",
+        frame_id="imu_link",
+        silence_timeout_s=0.3,
+        status_rate_hz=5.0,
+        velocity_sigma_mps=0.5,
+        core=EstimatorParams(window_steps=40, input_rate_hz=100.0, limits=InputLimits(stl_m=0.4)),
+    )
+    assert params.velocity_variance_m2ps2 == 0.25
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "rule"),
+    [("status_rate_hz", 0.0, "> 0"), ("status_rate_hz", -2.0, "> 0"),
+     ("status_rate_hz", math.nan, "> 0"), ("status_rate_hz", math.inf, "> 0"),
+     ("silence_timeout_s", 0.0, "> 0"), ("silence_timeout_s", -0.1, "> 0"),
+     ("silence_timeout_s", math.nan, "> 0"), ("silence_timeout_s", math.inf, "> 0"),
+     ("velocity_sigma_mps", -0.01, ">= 0"), ("velocity_sigma_mps", math.nan, ">= 0"),
+     ("velocity_sigma_mps", math.inf, ">= 0"),
+     ("input_rate_hz", -1.0, ">= 0"), ("input_rate_hz", math.nan, ">= 0"),
+     ("min_speed_mps", math.nan, ">= 0"), ("window_steps", 0, ">= 1")],
+)  # fmt: skip
+def test_bad_node_value_is_a_value_error_naming_the_parameter_and_the_rule(
+    name: str, value: object, rule: str
+) -> None:
+    with pytest.raises(ValueError) as info:
+        NodeParams.from_values(_defaults() | {name: value})
+    message = str(info.value)
+    assert message.startswith(f"{name} must be") and rule in message
+    assert message.endswith(repr(value)) or message.endswith(str(value))
+
+
+def test_a_zero_velocity_sigma_is_allowed_and_gives_zero_variance() -> None:
+    params = NodeParams.from_values(_defaults() | {"velocity_sigma_mps": 0.0})
+    assert params.velocity_variance_m2ps2 == 0.0
+
+
+@given(
+    name=st.sampled_from(["status_rate_hz", "silence_timeout_s", "velocity_sigma_mps"]),
+    value=st.floats(allow_nan=True, allow_infinity=True),
+)
+def test_a_node_value_is_refused_exactly_when_it_is_outside_its_range(
+    name: str, value: float
+) -> None:
+    # A rate and a timeout must be > 0 (a 0 Hz timer never fires, a 0 s timeout always
+    # warns); a σ may be 0 (an exact speed), never negative; none may be NaN or infinite.
+    valid = math.isfinite(value) and (value >= 0.0 if name == "velocity_sigma_mps" else value > 0)
+    if valid:
+        assert getattr(NodeParams(**{name: value}), name) == value
+    else:
+        with pytest.raises(ValueError, match=f"^{name} must be finite"):
+            NodeParams(**{name: value})
+
+
+def test_node_params_are_frozen() -> None:
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        NodeParams().status_rate_hz = 10.0  # type: ignore[misc]
+
+
+# --- --help ------------------------------------------------------------------------------------
+
+
+def test_help_page_lists_the_node_parameters_then_each_backend_under_its_prefix() -> None:
+    text = help_page()
+    backend_headings = [f"Back-end {name} (parameters {name}.*):" for name in BACKENDS]
+    starts = [text.index("Parameters:"), *(text.index(h) for h in backend_headings)]
+    assert starts == sorted(starts), "the node's parameters first, back-ends in registry order"
+    sections = [text[a:b] for a, b in zip(starts, [*starts[1:], len(text)], strict=True)]
+    for p in PARAMETERS:
+        assert f"  {p.name} ({p.type_name}, default {p.default!r})" in sections[0]
+    for section, factory in zip(sections[1:], BACKENDS.values(), strict=True):
+        for p in factory.parameters:
+            assert f"  {p.name} ({p.type_name}, default {p.default!r})" in section
+    assert text.startswith("sideslip-estimator (ros2 run sideslip_estimator estimator_node)")
 
 
 def test_backend_parameter_describes_every_registered_backend() -> None:

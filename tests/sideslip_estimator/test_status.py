@@ -1,15 +1,33 @@
 """The status diagnostic: OK while estimating, WARN when degraded, ERROR for unusable input,
-with a one-line message and the values an operator reads."""
+with a one-line message and the values an operator reads; and what feeds it: the counters'
+difference, the publishers seen on each input, and the tracker of what the node saw."""
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections import Counter
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from rclpy.topic_endpoint_info import TopicEndpointInfo, TopicEndpointTypeEnum
 
-from sideslip_estimator.estimator import EstimatorStats
-from sideslip_estimator.status import LEVEL_NAMES, Counts, Observation, Status, assess
+from sideslip_estimator.backends import create_backend
+from sideslip_estimator.estimator import Estimator, EstimatorParams, EstimatorStats
+from sideslip_estimator.inputs import InputRejected
+from sideslip_estimator.status import (
+    LEVEL_NAMES,
+    LOG_EVERY_S,
+    Counts,
+    Observation,
+    Status,
+    StatusTracker,
+    assess,
+    input_publishers,
+)
+from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
 from sideslip_msgs_py.outputs import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 TOPICS = ("/vehicle/imu", "/vehicle/twist", "/vehicle/steering")
@@ -183,8 +201,265 @@ def test_a_model_refusing_the_input_rate_is_an_error_naming_both_rates() -> None
 
 
 def test_the_published_sigma_is_summarised_in_degrees() -> None:
-    import math
-
     v = _assess(_obs(sigmas_rad=[math.radians(0.05)] * 19 + [math.radians(0.5)])).values
     assert v["beta_sigma_deg_p50"] == "0.0500" and float(v["beta_sigma_deg_p95"]) > 0.05
     assert _assess(_obs()).values["beta_sigma_deg_p50"] == "n/a"
+
+
+# --- the counters' difference ------------------------------------------------------------------
+
+counts = st.builds(Counts, **{f.name: st.integers(0, 10**9) for f in fields(Counts)})
+
+
+def _plus(a: Counts, b: Counts) -> Counts:
+    return Counts(**{f.name: getattr(a, f.name) + getattr(b, f.name) for f in fields(Counts)})
+
+
+def test_counts_subtract_field_by_field() -> None:
+    # Every field distinct, so a field taken from the wrong one (or left out) shows.
+    names = [f.name for f in fields(Counts)]
+    after = Counts(**{n: 100 * (i + 1) for i, n in enumerate(names)})
+    before = Counts(**{n: i + 1 for i, n in enumerate(names)})
+    diff = after - before
+    assert [getattr(diff, n) for n in names] == [99 * (i + 1) for i in range(len(names))]
+
+
+def test_counts_of_stats_sum_the_rejections_and_restarts_over_their_reasons() -> None:
+    stats = _stats(
+        rejected=Counter({"non_finite": 2, "stale_twist": 3}),
+        resets=Counter({"gap": 1, "stamp_backwards": 4}),
+        dropped=7,
+        below_min_speed=11,
+        no_estimate=13,
+    )
+    assert Counts.of(stats) == Counts(
+        rejections=5, drops=7, resets=5, estimates=901, below_min_speed=11, no_estimate=13
+    )
+
+
+@given(a=counts, b=counts, c=counts)
+def test_the_differences_of_successive_snapshots_add_up_to_the_whole_span(
+    a: Counts, b: Counts, c: Counts
+) -> None:
+    # What two status periods reported adds up to what happened over both of them.
+    assert _plus(c - b, b - a) == c - a
+    assert _plus(b - a, a) == b
+    assert a - a == Counts() and a - Counts() == a
+
+
+# --- publishers on the input topics -----------------------------------------------------------
+
+IMU_TYPE, TWIST_TYPE, STEERING_TYPE = (
+    "sensor_msgs/msg/Imu",
+    "geometry_msgs/msg/TwistStamped",
+    "sensor_msgs/msg/JointState",
+)
+
+
+def _publisher(namespace: str, name: str, topic_type: str) -> TopicEndpointInfo:
+    """A publisher as rclpy's get_publishers_info_by_topic reports it."""
+    return TopicEndpointInfo(
+        node_name=name,
+        node_namespace=namespace,
+        topic_type=topic_type,
+        endpoint_type=TopicEndpointTypeEnum.PUBLISHER,
+    )
+
+
+def test_input_publishers_names_every_publisher_with_its_namespace() -> None:
+    publishers, wrong = input_publishers(
+        [
+            (TOPICS[0], IMU_TYPE, [_publisher("/", "sim", IMU_TYPE),
+                                   _publisher("/car/", "imu_driver", IMU_TYPE)]),
+            (TOPICS[1], TWIST_TYPE, [_publisher("/car", "odometry", TWIST_TYPE)]),
+            (TOPICS[2], STEERING_TYPE, []),
+        ]
+    )  # fmt: skip
+    assert publishers == {
+        "/vehicle/imu": ["/sim", "/car/imu_driver"],
+        "/vehicle/twist": ["/car/odometry"],
+        "/vehicle/steering": [],
+    }
+    assert wrong == []
+    status = _assess(_obs(publishers=publishers))
+    assert status.level == DIAGNOSTIC_WARN
+    assert status.message == "2 publishers on /vehicle/imu: /sim, /car/imu_driver"
+    assert status.values["publishers[/vehicle/twist]"] == "/car/odometry"
+    assert status.values["publishers[/vehicle/steering]"] == "none"  # missing
+
+
+def test_a_publisher_of_another_type_is_an_error_line_not_a_publisher() -> None:
+    publishers, wrong = input_publishers(
+        [
+            (TOPICS[0], IMU_TYPE, [_publisher("/", "sim", IMU_TYPE),
+                                   _publisher("/tools", "echo", "std_msgs/msg/String")]),
+        ]
+    )  # fmt: skip
+    assert publishers == {"/vehicle/imu": ["/sim"]}
+    assert wrong == [
+        "/vehicle/imu: /tools/echo publishes std_msgs/msg/String, expected sensor_msgs/msg/Imu"
+    ]
+    status = _assess(_obs(publishers=publishers, wrong_types=wrong))
+    assert status.level == DIAGNOSTIC_ERROR and status.message == wrong[0]
+
+
+def test_a_publisher_whose_node_is_not_discovered_yet_is_named_so() -> None:
+    publishers, _ = input_publishers(
+        [(TOPICS[0], IMU_TYPE, [_publisher("/", "_NODE_NAME_UNKNOWN_", IMU_TYPE)])]
+    )
+    assert publishers == {"/vehicle/imu": ["(a node not discovered yet)"]}
+
+
+# --- the tracker -------------------------------------------------------------------------------
+
+IMU, TWIST, STEERING = TOPICS
+STEP_NS = 2_500_000  # 400 Hz
+T0_NS = 1_700_000_000 * 10**9
+WINDOW = 10
+
+
+def _core() -> Estimator:
+    return Estimator(create_backend("kinematic", {}, WINDOW), EstimatorParams(window_steps=WINDOW))
+
+
+def _tracker(core: Estimator, frame_id: str = "base_link") -> StatusTracker:
+    return StatusTracker(core.stats, TOPICS, frame_id, silence_timeout_s=0.1)
+
+
+def _feed(core: Estimator, tracker: StatusTracker, k: int, now_s: float) -> None:
+    """Twist, steering and IMU of step ``k`` arriving at steady time ``now_s``."""
+    stamp = T0_NS + k * STEP_NS
+    for topic in TOPICS:
+        tracker.received(topic, now_s)
+    core.on_twist(TWIST, TwistFields(stamp, 20.0, 0.5))
+    core.on_steering(STEERING, SteeringFields(stamp, 0.01, 0.0))
+    tracker.imu_received(stamp, now_s)
+    out = core.on_imu(IMU, ImuFields(stamp, 0.1, 2.0, 0.1))
+    if out is not None:
+        tracker.published(1e-4, out.estimate.variance_rad2)
+
+
+def test_a_frame_mismatch_is_reported_once_per_topic() -> None:
+    tracker = _tracker(_core())
+    line = "/vehicle/imu: frame_id 'imu_link', expected 'base_link' (used as if base_link)"
+    assert tracker.frame_mismatch(IMU, "base_link") is None
+    assert tracker.frame_mismatch(IMU, "imu_link") == line
+    assert tracker.frame_mismatch(IMU, "imu_link") is None  # logged already
+    assert tracker.frame_mismatch(IMU, "map") is None  # still the one report for the topic
+    assert tracker.frame_mismatch(TWIST, "odom") is not None  # another topic: its own report
+    obs = tracker.observe(_core(), {}, [], now_s=1.0)
+    assert obs.wrong_frames[0] == line and len(obs.wrong_frames) == 2
+    assert _assess(obs).level == DIAGNOSTIC_WARN
+
+
+def test_an_empty_frame_id_parameter_turns_the_frame_check_off() -> None:
+    tracker = _tracker(_core(), frame_id="")
+    assert tracker.frame_mismatch(IMU, "imu_link") is None
+    assert tracker.frame_mismatch(TWIST, "") is None
+    assert tracker.observe(_core(), {}, [], now_s=1.0).wrong_frames == []
+
+
+def test_rejection_logs_are_throttled_to_one_per_log_every_s_per_reason() -> None:
+    tracker = _tracker(_core())
+    t0 = 1000.0
+    assert tracker.rejection_due("non_finite", t0)
+    assert not tracker.rejection_due("non_finite", t0 + 0.001)
+    assert tracker.rejection_due("stale_twist", t0 + 0.002)  # another reason: its own clock
+    assert not tracker.rejection_due("non_finite", t0 + LOG_EVERY_S - 0.001)
+    assert tracker.rejection_due("non_finite", t0 + LOG_EVERY_S)
+    # Measured from the last log, not from the last rejection.
+    assert not tracker.rejection_due("non_finite", t0 + 2 * LOG_EVERY_S - 0.001)
+    assert tracker.rejection_due("non_finite", t0 + 2 * LOG_EVERY_S)
+
+
+def test_the_first_rejection_is_logged_whatever_the_steady_clock_reads() -> None:
+    # time.monotonic() may be small (shortly after boot) or very large.
+    for now_s in (0.0, 0.5, 1e7):
+        assert _tracker(_core()).rejection_due("non_finite", now_s)
+
+
+@given(gaps=st.lists(st.floats(0.0, 3 * LOG_EVERY_S, allow_nan=False), min_size=1, max_size=40))
+def test_logged_rejections_are_log_every_s_apart_and_none_is_missed(gaps: list[float]) -> None:
+    times = [100.0 + sum(gaps[: i + 1]) for i in range(len(gaps))]
+    tracker = _tracker(_core())
+    logged = [t for t in times if tracker.rejection_due("late_stamp", t)]
+    assert logged and logged[0] == times[0]
+    assert all(b - a >= LOG_EVERY_S for a, b in itertools.pairwise(logged))
+    # A rejection goes unlogged only within LOG_EVERY_S of the previous log.
+    for t in times:
+        if t not in logged:
+            assert t - max(x for x in logged if x <= t) < LOG_EVERY_S
+
+
+def test_each_wrong_type_line_is_new_once() -> None:
+    tracker = _tracker(_core())
+    a = "/vehicle/imu: /echo publishes std_msgs/msg/String, expected sensor_msgs/msg/Imu"
+    b = "/vehicle/twist: /echo publishes std_msgs/msg/String, expected ..."
+    assert tracker.new_wrong_types([a, a]) == [a]
+    assert tracker.new_wrong_types([a, b]) == [b]
+    assert tracker.new_wrong_types([b, a]) == []
+
+
+def test_the_status_stamp_is_the_ros_time_when_there_is_one() -> None:
+    tracker = _tracker(_core())
+    tracker.imu_received(T0_NS, 50.0)
+    assert tracker.stamp_ns(T0_NS + 7, now_s=99.0, wall_ns=5) == T0_NS + 7
+
+
+def test_with_sim_time_and_no_clock_the_status_stamp_still_advances() -> None:
+    # use_sim_time with nothing on /clock: the ROS time reads 0.
+    tracker = _tracker(_core())
+    wall_ns = 1_750_000_000 * 10**9
+    assert tracker.stamp_ns(0, now_s=49.0, wall_ns=wall_ns) == wall_ns  # no IMU yet
+    tracker.imu_received(T0_NS, 50.0)
+    first = tracker.stamp_ns(0, now_s=50.25, wall_ns=wall_ns)
+    second = tracker.stamp_ns(0, now_s=50.75, wall_ns=wall_ns)
+    assert first == T0_NS + 250_000_000  # the newest IMU stamp plus the time since
+    assert second - first == 500_000_000
+
+
+def test_observe_reports_ages_latencies_sigmas_and_what_happened_since_the_previous_call() -> None:
+    core = _core()
+    tracker = _tracker(core)
+    for k in range(WINDOW + 4):  # 5 estimates once the window holds WINDOW samples
+        _feed(core, tracker, k, now_s=10.0 + 0.0025 * k)
+    with pytest.raises(InputRejected, match=r"linear_acceleration\.x is nan"):
+        core.on_imu(IMU, ImuFields(T0_NS + 14 * STEP_NS, math.nan, 2.0, 0.1))
+    tracker.received(IMU, 10.04)
+    publishers = {IMU: ["/sim"], TWIST: ["/sim"], STEERING: ["/sim"]}
+    obs = tracker.observe(core, publishers, [], now_s=10.05)
+
+    assert obs.input_ages_s[IMU] == pytest.approx(0.01)
+    assert obs.input_ages_s[TWIST] == pytest.approx(0.05 - 0.0025 * 13)
+    assert obs.window_fill == (WINDOW, WINDOW)
+    assert obs.new == Counts(rejections=1, estimates=5)
+    assert obs.latencies_s == [1e-4] * 5
+    assert len(obs.sigmas_rad) == 5
+    assert all(s >= 0.0 and math.isfinite(s) for s in obs.sigmas_rad)
+    assert obs.publishers == publishers and obs.silence_timeout_s == 0.1
+    assert _assess(obs, core.stats).values["estimates"] == "5"
+
+    tracker.published(2e-4, 4e-6)  # one more estimate, in the next period
+    assert obs.latencies_s == [1e-4] * 5, "the reported period must not change afterwards"
+    later = tracker.observe(core, publishers, [], now_s=11.0)
+    assert later.new == Counts()  # the counters did not move since
+    assert later.latencies_s == [2e-4] and later.sigmas_rad == [pytest.approx(2e-3)]
+    assert later.input_ages_s[IMU] == pytest.approx(0.96)
+
+
+def test_an_input_never_heard_from_has_no_age() -> None:
+    core = _core()
+    tracker = _tracker(core)
+    tracker.received(IMU, 3.0)
+    obs = tracker.observe(core, {}, [], now_s=3.5)
+    assert obs.input_ages_s == {IMU: 0.5, TWIST: None, STEERING: None}
+    assert "no message yet on /vehicle/twist, /vehicle/steering" in _assess(obs).message
+
+
+def test_the_first_observation_counts_only_what_happened_after_the_tracker_started() -> None:
+    core = _core()
+    for k in range(WINDOW + 2):  # 3 estimates before the tracker exists
+        _feed(core, _tracker(core), k, now_s=1.0)
+    tracker = _tracker(core)
+    _feed(core, tracker, WINDOW + 2, now_s=2.0)
+    assert tracker.observe(core, {}, [], now_s=2.0).new == Counts(estimates=1)
