@@ -8,7 +8,8 @@ schedule, like ``ros2 bag play``. ``sideslip-record --reindex`` (:mod:`.reindex`
 finishes a bag whose recorder was killed, like ``ros2 bag reindex``.
 
 Only ``record.py`` and ``play.py`` import rclpy; the helpers (offered QoS and its
-adaptation, the playback schedule and plan, command-line options, message types, bag
+adaptation, the playback plan (its schedule is sideslip_msgs_py.schedule, shared
+with the simulator node), command-line options, message types, bag
 reading and writing, metadata.yaml, MCAP scanning, reindexing) are plain Python and are
 tested without DDS.
 """

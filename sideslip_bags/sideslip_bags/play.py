@@ -2,8 +2,9 @@
 
 Each message's recorded CDR bytes are published unchanged, at its log time relative to
 the first message scaled by ``--rate``, on an absolute schedule
-(:class:`~.schedule.Schedule`): publishing runs on its own thread and never
-accumulates drift. The executor thread only serves ``/clock`` (``--clock``). With
+(:class:`~sideslip_msgs_py.schedule.Schedule`, waiting with
+:func:`~sideslip_msgs_py.schedule.wait_until`): publishing runs on its own thread and
+never accumulates drift. The executor thread only serves ``/clock`` (``--clock``). With
 ``--wait-subscribers`` the first message waits until the awaited topics have their
 subscribers (bounded; then it plays anyway, with a warning). At the end of the bag the
 player waits (briefly) until reliable subscribers have acknowledged everything, then
@@ -28,6 +29,7 @@ from sideslip_msgs_py import topics as contract
 from sideslip_msgs_py.errors import BagError
 from sideslip_msgs_py.nodes.qos import profile_for, to_rclpy
 from sideslip_msgs_py.nodes.runtime import StopFlag, run
+from sideslip_msgs_py.schedule import Schedule, wait_until
 
 from .bagsource import BagSource, open_bag
 from .errors import ToolError
@@ -42,7 +44,6 @@ from .options import (
     split_ros_args,
 )
 from .playplan import DEFAULT_CLOCK_HZ, PlayOptions, PlayPlan, plan_playback
-from .schedule import Schedule
 
 PROG: Final = "sideslip-play"
 NODE_NAME: Final = "sideslip_play"
@@ -258,8 +259,7 @@ class Player(Node):
                 if schedule is None:
                     schedule = Schedule(time.monotonic_ns(), log_time_ns, self._options.rate)
                     self._schedule = schedule
-                wait_ns = schedule.deadline_ns(log_time_ns) - time.monotonic_ns()
-                if (wait_ns > 0 and flag.wait(wait_ns * 1e-9)) or flag.is_set():
+                if not wait_until(schedule.deadline_ns(log_time_ns), flag):
                     break
                 pubs[topic].publish(data)
                 counts[topic] += 1

@@ -7,7 +7,7 @@ project gets ROS 2 from PyPI wheels. So these tests resolve statically what
 console script that colcon installs to ``lib/<pkg>/``, every
 ``$(find-pkg-share pkg)/config/...`` is a YAML file the package installs, every
 ``$(var x)`` is declared by an ``<arg>``, every parameter a launch file sets is one the
-node declares (a ``ParameterSpec`` in the package), with the declared type (launch
+node declares (in its parameter table), with the declared type (launch
 types a value by parsing it as YAML; the nodes take an integer for a double and refuse
 any other type change), and every launch argument that overrides a parameter defaults
 to the YAML's value, or to the node's own default where the YAML does not set it: a
@@ -21,7 +21,6 @@ node that exits stops the launch.
 
 from __future__ import annotations
 
-import ast
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -39,34 +38,27 @@ LAUNCH_FILES = {
 }
 FIND_PKG_SHARE = re.compile(r"\$\(find-pkg-share\s+([\w-]+)\)/([^\s\"$]+)")
 VAR = re.compile(r"\$\(var\s+([\w-]+)\)")
-# Parameters every rclpy node declares itself (and qos_overrides.*): not in ParameterSpecs.
+# Parameters every rclpy node declares itself (and qos_overrides.*): not in the tables.
 BUILT_IN_PARAMETERS = {"use_sim_time"}
-UNKNOWN = object()
 
 
 def declared_parameters(package: str) -> dict[str, object]:
-    """``{name: default}`` of every ``ParameterSpec("name", default, ...)`` in the package.
+    """``{name: default}`` of every parameter the package's node declares, read from its
+    declaration table; the estimator's back-ends' under ``<backend>.`` (it declares only
+    the selected back-end's)."""
+    if package == "sideslip_sim":
+        from sideslip_sim.node_parameters import PARAMETERS as SIM
 
-    Specs in ``backends/<name>.py`` are declared under the prefix ``<name>.`` (the
-    estimator declares only the selected back-end's, as ``backend_name.param``). A
-    default that is not a literal (``math.radians(0.2)``) is recorded as ``UNKNOWN``.
-    """
-    declared: dict[str, object] = {}
-    for module in sorted((ROOT / package / package).rglob("*.py")):
-        prefix = f"{module.stem}." if module.parent.name == "backends" else ""
-        for call in ast.walk(ast.parse(module.read_text())):
-            if (
-                isinstance(call, ast.Call)
-                and getattr(call.func, "id", None) == "ParameterSpec"
-                and len(call.args) >= 2
-                and isinstance(call.args[0], ast.Constant)
-            ):
-                try:
-                    default = ast.literal_eval(call.args[1])
-                except ValueError:
-                    default = UNKNOWN
-                declared[prefix + call.args[0].value] = default
-    return declared
+        return {p.name: p.default for p in SIM}
+    if package == "sideslip_estimator":
+        from sideslip_estimator.backends import BACKENDS
+        from sideslip_estimator.node_parameters import PARAMETERS as ESTIMATOR
+
+        declared: dict[str, object] = {p.name: p.default for p in ESTIMATOR}
+        for name, factory in BACKENDS.items():
+            declared |= {f"{name}.{p.name}": p.default for p in factory.parameters}
+        return declared
+    return {}
 
 
 def launch_files() -> list[Path]:
@@ -195,8 +187,8 @@ def test_set_parameters_are_declared_typed_and_default_to_the_yaml(path: Path) -
             )
             expected = yaml_params.get(key, declared[key])
             var = VAR.fullmatch(value)
-            if (var and defaults.get(var.group(1)) is None) or expected is UNKNOWN:
-                continue  # a required argument, or a computed default: nothing to compare
+            if var and defaults.get(var.group(1)) is None:
+                continue  # a required argument: nothing to compare
             # launch infers a parameter's type by parsing the text as YAML.
             text = defaults[var.group(1)] if var else value
             launched = yaml.safe_load(text)

@@ -1,4 +1,4 @@
-"""sideslip-play: schedule, remaps, QoS from bag metadata, refusals; then real DDS runs."""
+"""sideslip-play: remaps, QoS from bag metadata, refusals; then real DDS runs."""
 
 from __future__ import annotations
 
@@ -28,7 +28,6 @@ from sideslip_bags.offered_qos import (
 )
 from sideslip_bags.options import parse_remaps, split_ros_args
 from sideslip_bags.playplan import PlayOptions, plan_playback
-from sideslip_bags.schedule import Schedule
 from sideslip_msgs_py import qos, topics
 from sideslip_msgs_py.bag import write_bag
 from sideslip_msgs_py.errors import NotABagError
@@ -70,19 +69,6 @@ def raw_messages(bag: Path) -> dict[str, list[bytes]]:
 
 
 # --- pure helpers ----------------------------------------------------------------------------
-
-
-def test_schedule_is_absolute_so_late_messages_do_not_shift_later_deadlines() -> None:
-    schedule = Schedule(start_ns=5_000, t_first_ns=T0_NS, rate=2.0)
-    assert schedule.deadline_ns(T0_NS) == 5_000
-    assert schedule.deadline_ns(T0_NS + 1_000_000_000) == 5_000 + 500_000_000
-    # Deadlines depend only on the log time, never on when the previous one was met.
-    many = [schedule.deadline_ns(T0_NS + i * STEP_NS) for i in range(10_000)]
-    assert many[-1] == 5_000 + round(9_999 * STEP_NS / 2.0)
-    assert schedule.bag_time_ns(5_000 + 250_000_000) == T0_NS + 500_000_000
-    assert schedule.bag_time_ns(0) == T0_NS  # before the start: the first message's time
-    with pytest.raises(ValueError, match="rate"):
-        Schedule(0, 0, rate=0.0)
 
 
 def test_remaps_parse_and_bad_syntax_names_the_item() -> None:
