@@ -382,6 +382,23 @@ def test_one_long_recording_trains_on_its_start_and_is_tested_on_its_end(
     assert test["LSTM"]["samples"] == 1200 - 99 and math.isfinite(test["LSTM"]["mae_deg"])
 
 
+def test_three_bags_with_a_test_part_are_split_by_bag_and_not_refit(
+    make_arrays, write_arrays, tmp_path
+):
+    # auto splits three bags by bag; the test part leaves two for training and
+    # validation, which must not turn the recorded split (and --refit auto) into "time".
+    for k in range(3):
+        write_arrays(f"drive{k}", make_arrays(800, seed=10 + k), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    assert train_main([*args, "--test-fraction", "0.34", "--out", str(out), *TINY]) == 0
+    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    assert config["split"] == "bag"
+    assert len(config["test_bags"]) == 1 and "@" not in config["test_bags"][0]
+    metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
+    assert "refit_epochs" not in metrics
+
+
 def test_the_window_in_seconds_keeps_its_horizon_at_another_rate(
     make_arrays, write_arrays, tmp_path
 ):

@@ -34,7 +34,6 @@ from .training_data import (
     load_training_data,
     recorded_rate_hz,
     sample_period_s,
-    split_mode,
     window_steps,
 )
 
@@ -207,7 +206,9 @@ def run_config(args: argparse.Namespace, command: str, plan: TrainPlan) -> dict[
         "train_bags": [r.name for r in data.train_runs],
         "val_bags": [r.name for r in data.val_runs],
         "test_bags": [r.name for r in data.test_runs],
-        "split": split_mode(args.split, data.train_runs + data.val_runs),
+        # The mode the parts were really split by (chosen on all of --data, before a
+        # test part was taken), not one recomputed from what training and validation kept.
+        "split": data.split,
         "window_steps": plan.window,
         "data_digest": data_digest(data.runs),
         "normalizer": data.normalizer.to_dict(),

@@ -54,8 +54,9 @@ class DataChoice:
 
 @dataclass(frozen=True)
 class TrainingData:
-    """Runs of each part (``runs``: training + validation), the statistics and the
-    window indices of training and validation at ``stride`` [samples]."""
+    """Runs of each part (``runs``: training + validation), the statistics, the window
+    indices of training and validation at ``stride`` [samples], and how the parts were
+    split (``bag`` or ``time``: what ``--refit auto`` and config.json go by)."""
 
     runs: list[Run]
     train_runs: list[Run]
@@ -65,6 +66,7 @@ class TrainingData:
     train: WindowIndex
     val: WindowIndex
     stride: int
+    split: str
 
 
 def split_mode(split: str, runs: Sequence[Run]) -> str:
@@ -85,8 +87,9 @@ def check_features(runs: Sequence[Run], channels: Sequence[str]) -> None:
 
 def _split(
     choice: DataChoice, load: dict[str, Any], log: Callable[[str], None]
-) -> tuple[list[Run], list[Run], list[Run]]:
-    """Training, validation and test runs (the last may be empty)."""
+) -> tuple[list[Run], list[Run], list[Run], str]:
+    """Training, validation and test runs (the last may be empty), and the split mode
+    chosen on all of ``--data`` (``bag`` or ``time``)."""
     runs, report = load_runs(choice.data, **load)
     log(str(report))
     mode = split_mode(choice.split, runs)
@@ -120,7 +123,7 @@ def _split(
         f"split by {mode}: {len(train_runs)} training, {len(val_runs)} validation, "
         f"{len(test_runs)} test run(s)"
     )
-    return train_runs, val_runs, test_runs
+    return train_runs, val_runs, test_runs, mode
 
 
 def load_training_data(
@@ -145,7 +148,7 @@ def load_training_data(
     """
     topic_map = TopicMap.load(choice.topic_map) if choice.topic_map else None
     load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
-    train_runs, val_runs, test_runs = _split(choice, load, log)
+    train_runs, val_runs, test_runs, mode = _split(choice, load, log)
     runs = [*train_runs, *val_runs]
     check_features(runs, spec.channels)
     if spec.needs_observer:
@@ -174,7 +177,7 @@ def load_training_data(
         f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
         f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
     )
-    return TrainingData(runs, train_runs, val_runs, test_runs, normalizer, train, val, stride)
+    return TrainingData(runs, train_runs, val_runs, test_runs, normalizer, train, val, stride, mode)
 
 
 def sample_period_s(runs: Sequence[Run]) -> float:
