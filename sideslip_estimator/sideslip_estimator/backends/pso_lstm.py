@@ -51,8 +51,9 @@ Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
 :data:`DEFAULT_SIGMA_RAD` (1°) squared. A constant, not a per-sample uncertainty.
 
-torch is imported only when the ``torch`` engine is built, never by this module's import,
-so the registry, the other back-ends and the default engine work without it.
+torch is imported only when the ``torch`` engine is built (:mod:`.torch_window`), never
+by this module's import, so the registry, the other back-ends and the default engine
+work without it.
 """
 
 from __future__ import annotations
@@ -89,6 +90,7 @@ from ..inputs import Y_A as _Y_A
 from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
+from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
 SHIPPED_DIR: Final = "data/models"
@@ -102,15 +104,6 @@ the car's parameters are right."""
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
-
-
-def _import_torch() -> Any:
-    try:
-        import torch
-    except ImportError:
-        msg = "pso_lstm needs PyTorch (pip install torch; the CPU wheel is enough)"
-        raise BackendError(msg) from None
-    return torch
 
 
 def shipped_models() -> list[str]:
@@ -269,7 +262,7 @@ class PsoLstmBackend:
         self.engine = engine
         """``numba`` or ``numpy`` (the streaming engine) or ``torch`` (the whole window
         per sample): the one that runs."""
-        self._window_net = _TorchWindow(tensors, meta, threads) if engine == "torch" else None
+        self._window_net = TorchWindow(tensors, meta, threads) if engine == "torch" else None
         self._rows_pushed = 0
         self._last_stamp = 0
         self.model_id = (
@@ -374,58 +367,6 @@ class PsoLstmBackend:
         return self._stream.push((x - self._mean) / self._std)
 
 
-class _TorchWindow:
-    """The network on one whole window with torch (the per-window path): what
-    ``sideslip_training``'s ``SideslipNet`` computes, bit for bit."""
-
-    def __init__(self, tensors: Mapping[str, np.ndarray], meta: ModelMetadata, threads: int):
-        torch = _import_torch()
-        torch.set_num_threads(threads)
-        self._torch = torch
-        self.meta = meta
-        n_features, hidden = len(meta.features), meta.hidden_units
-        lstm = torch.nn.LSTM(
-            n_features,
-            hidden,
-            num_layers=meta.layers,
-            batch_first=True,
-            bidirectional=meta.directions == 2,
-        )
-        head = torch.nn.Linear(meta.directions * hidden, 1)
-        lstm.load_state_dict(_prefixed(torch, tensors, "lstm."), strict=True)
-        head.load_state_dict(_prefixed(torch, tensors, "head."), strict=True)
-        lstm.eval().requires_grad_(False)
-        head.eval().requires_grad_(False)
-        self._head = head
-        # torch.lstm is what nn.LSTM.forward calls; calling it with the weights and a
-        # zero state prepared once saves ~50 us of Python per sample at 400 Hz.
-        self._weights = [w for layer in lstm.all_weights for w in layer]
-        zeros = torch.zeros(meta.layers * meta.directions, 1, hidden)
-        self._state = (zeros, zeros.clone())
-        # The network input (float32, shared memory with the tensor fed to torch).
-        self._input = torch.zeros(1, meta.window_steps, n_features, dtype=torch.float32)
-        self._input_np = self._input.numpy()
-
-    def __call__(self, z: npt.NDArray[np.float64]) -> float:
-        """y of one window of z-scored inputs (window_steps, F), rounded to float32."""
-        self._input_np[0] = z
-        torch = self._torch
-        with torch.inference_mode():
-            output, _, _ = torch.lstm(
-                self._input,
-                self._state,
-                self._weights,
-                True,  # has_biases
-                self.meta.layers,
-                0.0,  # dropout
-                False,  # train
-                self.meta.directions == 2,
-                True,  # batch_first
-            )
-            y = torch.nn.functional.linear(output[:, -1, :], self._head.weight, self._head.bias)
-        return float(y.item())
-
-
 def _vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDescription | None:
     """The car a model reads: the vehicle_file, else the model's own; None if not read."""
     if not meta.needs_vehicle:
@@ -463,11 +404,3 @@ def _observer_for(meta: ModelMetadata, params_file: str, label: str, window_step
         return UkfBackend({**meta.observer, "params_file": params_file}, window_steps)
     except BackendError as err:
         raise BackendError(f"pso_lstm.observer_params_file: {err}") from None
-
-
-def _prefixed(torch: Any, tensors: Mapping[str, np.ndarray], prefix: str) -> dict[str, Any]:
-    return {
-        name.removeprefix(prefix): torch.from_numpy(t)
-        for name, t in tensors.items()
-        if name.startswith(prefix)
-    }
