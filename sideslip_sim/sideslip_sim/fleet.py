@@ -22,16 +22,8 @@ all_season     0.85       0.93
 eco            0.90       0.95
 =============  =========  ==========
 
-Plausibility checks (`plausibility_problems`), on the linear single-track model with
-the axle tyres at their static loads:
-
-* understeer gradient K_us between 0.5 and 5 deg/g: every production car understeers
-  mildly in the linear range (neutral or oversteering cars are not sold);
-* static margin (b·C_r − a·C_f)/(L·(C_f + C_r)) between 0.01 and 0.25 (same reason,
-  stated on the tyre forces instead of the gradient);
-* static stability factor t/(2h) ≥ 1.05: the car slides before it tips on a level road
-  (US NCAP SUVs are 1.05–1.25, cars 1.3–1.5);
-* static wheel load at most 2.5× the tyre's (scaled) nominal load.
+Cars that fail the plausibility checks (:mod:`sideslip_sim.plausibility`) are drawn
+again.
 """
 
 from __future__ import annotations
@@ -45,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sideslip_sim.plausibility import DEG_PER_G, plausibility_problems
 from sideslip_sim.single_track import SingleTrack
 from sideslip_sim.tire import DEFAULT_TIR, TireParams, load_tire
 from sideslip_sim.vehicle import (
@@ -60,7 +53,6 @@ TIRE_CHARACTERISTICS: dict[str, tuple[float, float]] = {
     "all_season": (0.85, 0.93),
     "eco": (0.90, 0.95),
 }
-DEG_PER_G = math.radians(1.0) / GRAVITY_MPS2  # 1 deg/g in rad per (m/s²)
 
 
 class FleetError(ValueError):
@@ -92,50 +84,6 @@ class FleetRanges:
     wheel_load_over_nominal: tuple[float, float] = (0.7, 1.0)
     layout: str | None = None
     """fwd, rwd or awd for every car; None: drawn (45 / 25 / 30 %)."""
-
-
-@dataclass(frozen=True)
-class Plausibility:
-    """The checked figures of one car (units in the names)."""
-
-    understeer_gradient_deg_per_g: float
-    static_margin: float
-    static_stability_factor: float
-    max_wheel_load_over_nominal: float
-
-
-def plausibility(vehicle: VehicleParams, tire: TireParams) -> Plausibility:
-    model = SingleTrack.from_vehicle(vehicle, tire)
-    cf, cr = model.c_front_n_per_rad, model.c_rear_n_per_rad
-    margin = (model.b_m * cr - model.a_m * cf) / (model.wheelbase_m * (cf + cr))
-    track = 0.5 * (vehicle.track_front_m + vehicle.track_rear_m)
-    nominal = tire.fnomin_n * tire["LFZO"] * vehicle.tire_nominal_load_scale
-    corner = 0.5 * max(vehicle.static_axle_load_front_n, vehicle.static_axle_load_rear_n)
-    return Plausibility(
-        understeer_gradient_deg_per_g=model.understeer_gradient_rad_per_mps2 / DEG_PER_G,
-        static_margin=margin,
-        static_stability_factor=track / (2.0 * vehicle.cg_height_m),
-        max_wheel_load_over_nominal=corner / nominal,
-    )
-
-
-def plausibility_problems(vehicle: VehicleParams, tire: TireParams) -> list[str]:
-    """Why this car is not a plausible passenger car (empty: it is)."""
-    p = plausibility(vehicle, tire)
-    problems = []
-    if not 0.5 <= p.understeer_gradient_deg_per_g <= 5.0:
-        problems.append(
-            f"understeer gradient {p.understeer_gradient_deg_per_g:.2f} deg/g not in [0.5, 5]"
-        )
-    if not 0.01 <= p.static_margin <= 0.25:
-        problems.append(f"static margin {p.static_margin:.3f} not in [0.01, 0.25]")
-    if p.static_stability_factor < 1.05:
-        problems.append(f"static stability factor {p.static_stability_factor:.2f} < 1.05")
-    if p.max_wheel_load_over_nominal > 2.5:
-        problems.append(
-            f"static wheel load {p.max_wheel_load_over_nominal:.2f}x the tyre's nominal > 2.5"
-        )
-    return problems
 
 
 def vehicle_digest(vehicle: VehicleParams) -> str:

@@ -28,9 +28,10 @@ from tqdm import tqdm
 from sideslip_msgs_py.bag import write_bag
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim import __version__
-from sideslip_sim.fleet import plausibility, vehicle_digest
+from sideslip_sim.fleet import vehicle_digest
 from sideslip_sim.held_out import is_held_out
 from sideslip_sim.maneuvers import Maneuver, ManeuverError
+from sideslip_sim.plausibility import plausibility
 from sideslip_sim.presets import (
     PRESETS,
     TRAINING_PRESETS,
