@@ -25,6 +25,11 @@ Modelling choices (why):
   roll/pitch-compensated IMU: a_x = u̇ − v·r, a_y = v̇ + u·r.
 
 Corner order everywhere: 0 front-left, 1 front-right, 2 rear-left, 3 rear-right.
+
+Why this module runs past ~400 lines: the state layout, the right-hand side and the RK4
+step read the same index constants and are compiled together by numba; the 14-DOF
+right-hand side is one function on purpose (split, numba would inline it back and a
+reader would lose the equations' order).
 """
 
 from __future__ import annotations
