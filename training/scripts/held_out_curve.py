@@ -1,0 +1,141 @@
+"""Learning curve on a held-out car (issue 9): fine-tuned vs from scratch vs zero-shot,
+with 1, 2, 5, 10 and 20 minutes of the car's own data.
+
+The car's data: fleet-style runs (6-12 s each, μ 0.3-1.0, paper noise) of the held-out
+car itself, other seeds and manoeuvres than its benchmark runs, built with
+``fleet_runs`` directly (the training presets refuse held-out cars; this yardstick is
+never shipped). For each amount, the first runs whose durations add up to it:
+
+* **fine-tuned**: ``sideslip-train --init fleet_lstm_paper --profile quick`` (the
+  shipped model's inputs, prior and normalisation kept);
+* **scratch**: the same network from random weights: ``--model lstm --hidden-units 32
+  --features paper_kinematic --prior kinematic_window --profile quick``;
+* **zero-shot**: ``fleet_lstm_paper`` as shipped.
+
+Both trainings take their validation split from the same runs (``--split auto``); all
+three are scored once on the car's 18 held-out benchmark runs. Results (pooled MAE
+[deg]) in ``OUT/CAR/curve.json`` and ``OUT/CAR/curve.md``.
+
+    python training/scripts/held_out_curve.py --car heldout_sports_rwd --out data/held-out-curve
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+from sideslip_sim.generate import generate, prepare_output
+from sideslip_sim.held_out import held_out_vehicles
+from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
+from sideslip_training.cli import train_main
+from sideslip_training.evaluate_cli import main as evaluate_main
+from sideslip_training.fit import SHIPPED_PAPER
+from sideslip_training.init_model import resolve
+
+MINUTES = (1.0, 2.0, 5.0, 10.0, 20.0)
+
+
+def car_runs(name: str, minutes: float, seed: int) -> list[VehicleRun]:
+    """Fleet-style runs of the held-out car ``name``, at least ``minutes`` of driving."""
+    car = held_out_vehicles()[name]
+    cars = int(minutes * 60 / (6.0 * FLEET_RUNS_PER_CAR)) + 1  # runs last 6-12 s
+    runs = fleet_runs([car] * cars, FLEET_RUNS_PER_CAR * cars, seed)
+    return [
+        VehicleRun(
+            r.vehicle, dataclasses.replace(r.maneuver, name=f"own{i:03d}_{r.maneuver.family}")
+        )
+        for i, r in enumerate(runs)
+    ]
+
+
+def first_minutes(runs: list[VehicleRun], minutes: float) -> list[str]:
+    """Names of the first runs whose durations add up to ``minutes``."""
+    out, total = [], 0.0
+    for r in runs:
+        if total >= minutes * 60.0:
+            break
+        out.append(r.maneuver.name)
+        total += r.maneuver.duration_s
+    return out
+
+
+def pooled_mae(report: Path) -> dict[str, float]:
+    """Pooled MAE [deg] per estimator of a sideslip-evaluate report."""
+    summary = json.loads((report / "metrics.json").read_text())
+    return {r["estimator"]: r["mae"] for r in summary["pooled"] if r["mae"] is not None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--car", default="heldout_sports_rwd")
+    p.add_argument("--held-out", type=Path, default=Path("data/held-out"))
+    p.add_argument("--out", type=Path, default=Path("data/held-out-curve"))
+    p.add_argument("--minutes", type=float, nargs="+", default=list(MINUTES))
+    p.add_argument("--seed", type=int, default=7)
+    args = p.parse_args(argv)
+    work = args.out / args.car
+    data = work / "data"
+    runs = car_runs(args.car, max(args.minutes), args.seed)
+    runs = runs[: len(first_minutes(runs, max(args.minutes)))]
+    if not (data / "index.json").exists():
+        prepare_output(data, force=True)
+        generate(runs, data, seed=args.seed, preset_name="held-out-own (yardstick only)",
+                 jobs=2, progress=False)  # fmt: skip
+    bags = sorted(str(b) for b in args.held_out.glob(f"{args.car}_mu*"))
+    if len(bags) != 18:
+        print(f"{args.car}: expected 18 held-out runs under {args.held_out}, got {len(bags)}")
+        return 2
+    common = ["--profile", "quick", "--device", "cpu", "--seed", str(args.seed), "--quiet"]
+    scratch_model = ["--model", "lstm", "--hidden-units", "32", "--features", "paper_kinematic",
+                     "--prior", "kinematic_window"]  # fmt: skip
+    curve = {}
+    for minutes in args.minutes:
+        names = first_minutes(runs, minutes)
+        subset = [str(data / n) for n in names]
+        models = {}
+        for kind, extra in (("finetuned", ["--init", SHIPPED_PAPER]), ("scratch", scratch_model)):
+            out = work / f"{kind}_{minutes:g}min.safetensors"
+            if not out.exists():
+                code = train_main(
+                    ["--data", *subset, "--out", str(out), "--force", *extra, *common]
+                )
+                if code:
+                    return code
+            models[kind] = out
+        report = work / f"report_{minutes:g}min"
+        code = evaluate_main(["--model", str(models["finetuned"]), str(models["scratch"]),
+                              str(resolve(SHIPPED_PAPER)), "--data", *bags, "--out", str(report),
+                              "--force"])  # fmt: skip
+        if code:
+            return code
+        mae = pooled_mae(report)
+        by_stem = {
+            stem: next(v for k, v in mae.items() if k.endswith(f"({stem})"))
+            for stem in (models["finetuned"].stem, models["scratch"].stem, SHIPPED_PAPER)
+        }
+        curve[f"{minutes:g}"] = {
+            "runs": len(names),
+            "finetuned": by_stem[models["finetuned"].stem],
+            "scratch": by_stem[models["scratch"].stem],
+            "zero_shot": by_stem[SHIPPED_PAPER],
+        }
+        print(f"{args.car} {minutes:g} min: {curve[f'{minutes:g}']}", file=sys.stderr)
+    (work / "curve.json").write_text(json.dumps(curve, indent=2) + "\n")
+    lines = ["| minutes | runs | fine-tuned | scratch | zero-shot | fine-tuned vs scratch |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for m, c in curve.items():
+        gain = 1.0 - c["finetuned"] / c["scratch"]
+        lines.append(
+            f"| {m} | {c['runs']} | {c['finetuned']:.4f} | {c['scratch']:.4f} | "
+            f"{c['zero_shot']:.4f} | {gain:+.0%} |"
+        )
+    (work / "curve.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
