@@ -9,6 +9,9 @@ the IMU lags behind the twist on a loaded machine, the twist of the IMU's own st
 still found. A sample is rejected (never passed on) when one of those inputs is
 missing, further than ``max_input_age_s`` from the IMU stamp, or a message held a
 non-finite or physically absurd value.
+
+Which field of which topic gives which window column, and the bound each model input is
+checked against, come from the contract's registry (``sideslip_msgs_py.channels``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
+from sideslip_msgs_py import channels as registry
+from sideslip_msgs_py import topics
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, TwistFields
 
@@ -69,21 +74,41 @@ def _check(topic: str, field: str, value: float, limit: float) -> None:
         raise InputRejected("out_of_range", f"{topic}: {field} = {value:g} beyond ±{limit:g}")
 
 
+_CHECKED: Final[dict[str, tuple[registry.Channel, ...]]] = {
+    topic: tuple(ch for ch in registry.on_topic(topic) if ch.limit is not None)
+    for topic in topics.SENSOR_TOPICS
+}
+"""Per sensor topic, the channels checked against a bound (the rack's rate is not: it is
+no model input, and a missing (NaN) rate is normal for real sensors)."""
+
+
+def check_fields(contract_topic: str, topic: str, f: tuple, limits: InputLimits) -> None:
+    """Raise :class:`InputRejected` naming ``topic`` and the field when a value of a
+    ``contract_topic`` record (``ImuFields``, ...) is non-finite or beyond its bound."""
+    for ch in _CHECKED[contract_topic]:
+        _check(topic, ch.field, getattr(f, ch.name), getattr(limits, ch.limit))
+
+
 def check_imu(topic: str, f: ImuFields, limits: InputLimits) -> None:
     """Raise :class:`InputRejected` naming the field when an IMU value is unusable."""
-    _check(topic, "linear_acceleration.x", f.x_a_mps2, limits.acceleration_mps2)
-    _check(topic, "linear_acceleration.y", f.y_a_mps2, limits.acceleration_mps2)
-    _check(topic, "angular_velocity.z", f.yaw_rate_radps, limits.yaw_rate_radps)
+    check_fields(topics.IMU, topic, f, limits)
 
 
 def check_twist(topic: str, f: TwistFields, limits: InputLimits) -> None:
-    _check(topic, "twist.linear.x", f.x_v_mps, limits.speed_mps)
-    _check(topic, "twist.linear.y", f.y_v_mps, limits.speed_mps)
+    check_fields(topics.TWIST, topic, f, limits)
 
 
 def check_steering(topic: str, f: SteeringFields, limits: InputLimits) -> None:
-    # The rate is not a model input; a missing (NaN) rate is normal for real sensors.
-    _check(topic, "position[steering_rack]", f.stl_m, limits.stl_m)
+    check_fields(topics.STEERING, topic, f, limits)
+
+
+def _window_columns(topic: str) -> tuple[tuple[int, int], ...]:
+    """(index in ``topic``'s fields record, window column) of each model input it gives."""
+    names = [ch.name for ch in registry.on_topic(topic)]
+    return tuple((names.index(n) + 1, CHANNELS.index(n)) for n in names if n in CHANNELS)
+
+
+_COLUMNS: Final = {topic: _window_columns(topic) for topic in topics.SENSOR_TOPICS}
 
 
 class Aligner:
@@ -166,10 +191,11 @@ class Aligner:
         self._age_ok("twist", imu.stamp_ns, twist.stamp_ns)
         self._age_ok("steering", imu.stamp_ns, steering.stamp_ns)
         row = self._row
-        row[X_V] = twist.x_v_mps
-        row[Y_V] = twist.y_v_mps
-        row[X_A] = imu.x_a_mps2
-        row[Y_A] = imu.y_a_mps2
-        row[YAW_RATE] = imu.yaw_rate_radps
-        row[STL] = steering.stl_m
+        for topic, fields in (
+            (topics.TWIST, twist),
+            (topics.STEERING, steering),
+            (topics.IMU, imu),
+        ):
+            for i, column in _COLUMNS[topic]:
+                row[column] = fields[i]
         return row

@@ -8,23 +8,22 @@ checks, alignment, window and back-end as the node.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from sideslip_msgs_py import channels as registry
 from sideslip_msgs_py import topics
-from sideslip_msgs_py.messages import ImuFields, SteeringFields, TwistFields
-from sideslip_msgs_py.sample import SampleArrays
+from sideslip_msgs_py.messages import FIELDS_RECORDS
+from sideslip_msgs_py.sample import SENSOR_CHANNELS, SampleArrays
 
 from .estimator import Estimator
 from .inputs import InputRejected
 
-REPLAY_COLUMNS = (
-    "stamp_ns", "x_v_mps", "y_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m",
-    "stl_rate_mps",
-)  # fmt: skip
+REPLAY_COLUMNS = ("stamp_ns", *SENSOR_CHANNELS)
 """The sample columns the loop reads, in the order of :func:`replay_columns`' rows."""
 
 
@@ -46,15 +45,24 @@ def replay(estimator: Estimator, columns: tuple[Sequence[float | int], ...]) -> 
     n = len(columns[0])
     beta = np.full(n, np.nan)
     rejected = 0
-    rows = zip(*columns, strict=True)
-    for i, (stamp, x_v, y_v, x_a, y_a, r, stl, stl_rate) in enumerate(rows):
+    twists, steerings, imus = (
+        _records(t, columns) for t in (topics.TWIST, topics.STEERING, topics.IMU)
+    )
+    for i, (twist, steering, imu) in enumerate(zip(twists, steerings, imus, strict=True)):
         try:
-            estimator.on_twist(topics.TWIST, TwistFields(stamp, x_v, y_v))
-            estimator.on_steering(topics.STEERING, SteeringFields(stamp, stl, stl_rate))
-            out = estimator.on_imu(topics.IMU, ImuFields(stamp, x_a, y_a, r))
+            estimator.on_twist(topics.TWIST, twist)
+            estimator.on_steering(topics.STEERING, steering)
+            out = estimator.on_imu(topics.IMU, imu)
         except InputRejected:
             rejected += 1
             continue
         if out is not None:
             beta[i] = out.estimate.beta_rad
     return Replayed(beta, rejected)
+
+
+def _records(topic: str, columns: tuple[Sequence[float | int], ...]) -> Iterator[Any]:
+    """``topic``'s fields record (``TwistFields``, ...) of every row, stamped as the row
+    (made one row at a time, as the loop takes them)."""
+    picked = [columns[REPLAY_COLUMNS.index(ch.name)] for ch in registry.on_topic(topic)]
+    return map(FIELDS_RECORDS[topic]._make, zip(columns[0], *picked, strict=True))

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,12 +53,7 @@ from .errors import (
     MissingTopicError,
     WrongTopicTypeError,
 )
-from .messages import (
-    ground_truth_fields,
-    imu_fields,
-    steering_fields,
-    twist_fields,
-)
+from .message_fields import channel_values, stamp_ns
 from .qos import qos_for
 from .sample import SampleArrays, SensorNoiseSigma
 
@@ -202,25 +197,6 @@ class _Stream:
     columns: dict[str, npt.NDArray[np.float64]]
 
 
-def _ground_truth_columns(msg: Any) -> dict[str, float]:
-    stamp, truth = ground_truth_fields(msg)
-    return {
-        "stamp_ns": stamp,
-        "truth_v_x_mps": truth.v_x_mps,
-        "truth_v_y_mps": truth.v_y_mps,
-        "truth_yaw_rate_radps": truth.yaw_rate_radps,
-    }
-
-
-# Per-message readers for messages without the fixed layout; keys are SampleArrays columns.
-_EXTRACTORS: Final[dict[str, Callable[[Any], Mapping[str, float]]]] = {
-    topics.IMU: lambda msg: imu_fields(msg)._asdict(),
-    topics.TWIST: lambda msg: twist_fields(msg)._asdict(),
-    topics.STEERING: lambda msg: steering_fields(msg)._asdict(),
-    topics.GROUND_TRUTH_TWIST: _ground_truth_columns,
-}
-
-
 def _decode(path: Path, topic: str, raws: list[bytes], typestore: Any) -> _Stream:
     pairs = FIELD_COLUMNS[topic]
     rows = stack_rows(raws)
@@ -230,17 +206,18 @@ def _decode(path: Path, topic: str, raws: list[bytes], typestore: Any) -> _Strea
         columns = {column: decoded[field] for field, column in pairs}
     else:  # not our fixed layout (e.g. a real sensor's bag): one message at a time
         msgtype = topics.TOPIC_TYPES[topic]
-        extract = _EXTRACTORS[topic]
+        stamp_list, table = [], []
         try:
-            table = [extract(_deserialize(typestore, r, msgtype)) for r in raws]
+            for raw in raws:
+                msg = _deserialize(typestore, raw, msgtype)
+                stamp_list.append(stamp_ns(msg))
+                table.append(channel_values(msg, topic))
         except Exception as err:
             msg = f"{path}: cannot decode a {msgtype} message on {topic}: {err}"
             raise BagError(msg) from err
-        stamps = np.array([int(row["stamp_ns"]) for row in table], dtype=np.int64)
-        columns = {
-            column: np.array([row[column] for row in table], dtype=np.float64)
-            for _, column in pairs
-        }
+        stamps = np.array(stamp_list, dtype=np.int64)
+        values = np.array(table, dtype=np.float64).reshape(len(table), len(pairs))
+        columns = {column: values[:, i].copy() for i, (_, column) in enumerate(pairs)}
     order = np.argsort(stamps, kind="stable")
     return _Stream(stamps[order], {k: v[order] for k, v in columns.items()})
 
@@ -358,7 +335,7 @@ def _align(streams: dict[str, _Stream], *, truncated: bool, notes: list[str]) ->
         raise BagError(msg)
 
     keep = np.ones(stamps.shape, dtype=bool)
-    partners = [t for t in (topics.TWIST, topics.STEERING) if t in streams]
+    partners = [t for t in topics.SENSOR_TOPICS if t != topics.IMU and t in streams]
     for topic in partners:
         first = streams[topic].stamp_ns[0]
         if n_early := int(np.count_nonzero(stamps < first)):

@@ -9,6 +9,10 @@ of :func:`messages.sample_to_messages` for a zero sample, so constant fields suc
 covariances come from the one field mapping) is tiled, and the varying fields are
 written at their offsets. Tests check the bytes equal rosbags' ``serialize_cdr``.
 
+Each layout names every float64 field of its message, so a channel the registry
+(:mod:`.channels`) puts on any of them is encoded and decoded without a change here;
+:data:`FIELD_COLUMNS` derives from the registry.
+
 Format: XCDR1 little endian as ROS 2 uses it: a 4-byte encapsulation header
 ``00 01 00 00``, then the fields, each aligned to its own size counted from the end of
 that header. Offsets below are "body" offsets; :class:`Layout` stores absolute ones.
@@ -24,9 +28,18 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from . import channels as registry
 from . import topics
-from .messages import ImuCovariances, TypestoreMessages, imu_covariances, sample_to_messages
-from .sample import GroundTruth, SampleArrays, SensorNoiseSigma, VehicleSample
+from .field_path import joint_of
+from .messages import (
+    ImuCovariances,
+    JointStateShape,
+    TypestoreMessages,
+    imu_covariances,
+    joint_state_shape,
+    sample_to_messages,
+)
+from .sample import SENSOR_CHANNELS, GroundTruth, SampleArrays, SensorNoiseSigma, VehicleSample
 
 ENCAPSULATION_BYTES: Final = 4
 ByteRows = npt.NDArray[np.uint8]
@@ -117,46 +130,53 @@ class _LayoutBuilder:
         self._primitive("<u4", "header.stamp.nanosec")
         self.string(None, frame_id_len)
 
-    def vector3(self, prefix: str, used: str) -> None:
-        self.f8(*(f"{prefix}.{axis}" if axis in used else None for axis in "xyz"))
+    def vector3(self, prefix: str) -> None:
+        self.f8(*(f"{prefix}.{axis}" for axis in "xyz"))
+
+    def covariance(self, name: str) -> None:
+        self.f8(*(f"{name}[{i}]" for i in range(9)))
 
     def build(self) -> Layout:
         return Layout(self.msgtype, ENCAPSULATION_BYTES + self.pos, self.fields, tuple(self.checks))
 
 
 def imu_layout(frame_id_len: int) -> Layout:
-    """sensor_msgs/Imu: angular_velocity.z and linear_acceleration.x, .y."""
+    """sensor_msgs/Imu: every float64 field, by its attribute path."""
     b = _LayoutBuilder(topics.IMU_TYPE)
     b.header(frame_id_len)
-    b.f8(None, None, None, None)  # orientation x y z w
-    b.f8(*[None] * 9)
-    b.vector3("angular_velocity", "z")
-    b.f8(*[None] * 9)
-    b.vector3("linear_acceleration", "xy")
-    b.f8(*[None] * 9)
+    b.f8(*(f"orientation.{axis}" for axis in "xyzw"))
+    b.covariance("orientation_covariance")
+    b.vector3("angular_velocity")
+    b.covariance("angular_velocity_covariance")
+    b.vector3("linear_acceleration")
+    b.covariance("linear_acceleration_covariance")
     return b.build()
 
 
 def twist_stamped_layout(frame_id_len: int) -> Layout:
-    """geometry_msgs/TwistStamped: linear x, y and angular z."""
+    """geometry_msgs/TwistStamped: linear and angular x, y, z."""
     b = _LayoutBuilder(topics.TWIST_STAMPED_TYPE)
     b.header(frame_id_len)
-    b.vector3("twist.linear", "xy")
-    b.vector3("twist.angular", "z")
+    b.vector3("twist.linear")
+    b.vector3("twist.angular")
     return b.build()
 
 
-def joint_state_layout(frame_id_len: int) -> Layout:
-    """sensor_msgs/JointState with exactly the ``steering_rack`` joint and no effort."""
+def joint_state_layout(frame_id_len: int, shape: JointStateShape | None = None) -> Layout:
+    """sensor_msgs/JointState with exactly the contract's joints (``steering_rack``) and
+    arrays (position and velocity; effort empty): ``shape``, default the registry's."""
+    shape = shape if shape is not None else joint_state_shape()
+    n = len(shape.joints)
     b = _LayoutBuilder(topics.JOINT_STATE_TYPE)
     b.header(frame_id_len)
-    b.u32(1)  # name: one joint
-    b.string(topics.STEERING_JOINT, len(topics.STEERING_JOINT))
-    b.u32(1)
-    b.f8("position[0]")
-    b.u32(1)
-    b.f8("velocity[0]")
-    b.u32(0)  # effort: empty
+    b.u32(n)
+    for joint in shape.joints:
+        b.string(joint, len(joint))
+    for array in ("position", "velocity", "effort"):
+        used = array in shape.arrays
+        b.u32(n if used else 0)
+        if used:
+            b.f8(*(f"{array}[{i}]" for i in range(n)))
     return b.build()
 
 
@@ -181,26 +201,27 @@ def layout_for(topic: str, frame_id_len: int = len(topics.BASE_FRAME)) -> Layout
     raise KeyError(msg)
 
 
+def layout_field(path: str) -> str:
+    """A registry field path as the fixed layout names it: a joint by its index in the
+    contract's JointState (``position[steering_rack]`` → ``position[0]``)."""
+    joint = joint_of(path)
+    if joint is None:
+        return path
+    index = joint_state_shape().joints.index(joint)
+    return path.replace(f"[{joint}]", f"[{index}]")
+
+
 # --- encoding ------------------------------------------------------------------------------------
 
 FIELD_COLUMNS: Final[dict[str, tuple[tuple[str, str], ...]]] = {
-    topics.IMU: (
-        ("angular_velocity.z", "yaw_rate_radps"),
-        ("linear_acceleration.x", "x_a_mps2"),
-        ("linear_acceleration.y", "y_a_mps2"),
-    ),
-    topics.TWIST: (("twist.linear.x", "x_v_mps"), ("twist.linear.y", "y_v_mps")),
-    topics.STEERING: (("position[0]", "stl_m"), ("velocity[0]", "stl_rate_mps")),
-    topics.GROUND_TRUTH_TWIST: (
-        ("twist.linear.x", "truth_v_x_mps"),
-        ("twist.linear.y", "truth_v_y_mps"),
-        ("twist.angular.z", "truth_yaw_rate_radps"),
-    ),
+    topic: tuple((layout_field(ch.field), ch.name) for ch in registry.on_topic(topic))
+    for topic in (topics.IMU, topics.TWIST, topics.STEERING, topics.GROUND_TRUTH_TWIST)
 }
 """Per stamped sample topic: (message field path, :class:`SampleArrays` column) pairs.
 
-The same mapping as :func:`messages.sample_to_messages`, in the form the byte codec
-needs; the test that compares our bytes with rosbags' guards the pairing.
+The registry's mapping (:mod:`.channels`), as :func:`messages.sample_to_messages`
+uses it, in the form the byte codec needs; the test that compares our bytes with
+rosbags' guards the pairing.
 """
 
 
@@ -210,7 +231,11 @@ class SampleEncoder:
     def __init__(self, sigma: SensorNoiseSigma, factory: TypestoreMessages | None = None) -> None:
         self.factory = factory if factory is not None else TypestoreMessages()
         self.covariances: ImuCovariances = imu_covariances(sigma)
-        zero = VehicleSample(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, GroundTruth(0.0, 0.0, 0.0))
+        zero = VehicleSample(
+            stamp_ns=0,
+            truth=GroundTruth(0.0, 0.0, 0.0),
+            **dict.fromkeys(SENSOR_CHANNELS, 0.0),
+        )
         typestore = self.factory.typestore
         self.templates: dict[str, npt.NDArray[np.uint8]] = {}
         self.layouts: dict[str, Layout] = {}
@@ -258,12 +283,16 @@ def stack_rows(raws: Sequence[bytes | memoryview]) -> ByteRows | None:
     return np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
 
 
-def decode_columns(topic: str, rows: ByteRows) -> dict[str, npt.NDArray[Any]] | None:
+def decode_columns(
+    topic: str, rows: ByteRows, fields: Sequence[str] | None = None
+) -> dict[str, npt.NDArray[Any]] | None:
     """Decode stacked messages of a sample topic into named columns.
 
-    Returns ``stamp_ns`` (int64, stamped types only) and the contract fields by their
-    attribute paths, or None when the rows do not have the fixed layout (e.g. a real
-    bag with a different JointState): the caller then deserialises message by message.
+    Returns ``stamp_ns`` (int64, stamped types only) and ``fields`` by their attribute
+    paths (default: the contract fields of :data:`FIELD_COLUMNS`, or every field of a
+    topic without channels), or None when the rows do not have the fixed layout (e.g.
+    a real bag with a different JointState): the caller then deserialises message by
+    message.
     """
     if rows.shape[0] == 0:
         return None
@@ -277,9 +306,13 @@ def decode_columns(topic: str, rows: ByteRows) -> dict[str, npt.NDArray[Any]] | 
     layout = layout_for(topic, frame_len)
     if not layout.matches(rows):
         return None
-    out = {name: layout.read(rows, name) for name in layout.fields}
-    if "header.stamp.sec" in out:
-        sec = out.pop("header.stamp.sec").astype(np.int64)
-        nanosec = out.pop("header.stamp.nanosec").astype(np.int64)
+    if fields is None:
+        pairs = FIELD_COLUMNS.get(topic)
+        own = [f for f in layout.fields if not f.startswith("header.")]
+        fields = [f for f, _ in pairs] if pairs else own
+    out = {name: layout.read(rows, name) for name in fields}
+    if "header.stamp.sec" in layout.fields:
+        sec = layout.read(rows, "header.stamp.sec").astype(np.int64)
+        nanosec = layout.read(rows, "header.stamp.nanosec").astype(np.int64)
         out["stamp_ns"] = sec * 1_000_000_000 + nanosec
     return out

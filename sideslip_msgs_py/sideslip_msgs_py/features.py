@@ -9,26 +9,27 @@ from __future__ import annotations
 
 from typing import Final
 
+from . import channels as registry
 from .errors import ContractError
 
-CHANNELS: Final[tuple[str, ...]] = (
-    "x_v_mps",
-    "y_v_mps",
-    "x_a_mps2",
-    "y_a_mps2",
-    "yaw_rate_radps",
-    "stl_m",
-)
-"""Every sensor channel a model may read, in the estimator window's column order:
-X_v, Y_v [m/s] (body frame at the CG), X_a, Y_a [m/s²], ψ̇ [rad/s], STL [m]."""
+CHANNELS: Final[tuple[str, ...]] = tuple(ch.name for ch in registry.SENSOR if ch.model_input)
+"""Every sensor channel a model may read, in the estimator window's column order (the
+registry's model inputs, :mod:`.channels`): X_v, Y_v [m/s] (body frame at the CG),
+X_a, Y_a [m/s²], ψ̇ [rad/s], STL [m]."""
 
-FEATURE_SETS: Final[dict[str, tuple[str, ...]]] = {
+FEATURE_SET_NAMES: Final[tuple[str, ...]] = (
     # The paper's six inputs. Y_v/X_v already gives β up to noise (see the kinematic
     # baseline), which is why `measurable` exists.
-    "paper": CHANNELS,
+    "paper",
     # What a production car measures: no lateral velocity.
-    "measurable": ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m"),
+    "measurable",
+)
+
+FEATURE_SETS: Final[dict[str, tuple[str, ...]]] = {
+    name: tuple(ch.name for ch in registry.SENSOR if name in ch.feature_sets)
+    for name in FEATURE_SET_NAMES
 }
+"""Each feature set's channels, in :data:`CHANNELS` order (a channel's ``feature_sets``)."""
 
 
 class FeatureError(ContractError, ValueError):

@@ -6,9 +6,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from . import channels as registry
+from . import topics
 from .errors import BagError
-from .messages import ImuFields, SteeringFields, TwistFields, stamp_ns
+from .features import feature_set
+from .message_fields import FIELDS_RECORDS, stamp_ns
 from .topic_map import FieldSource, TopicMap, field_value, heading_yaw
+
+_PARTNERS = (topics.TWIST, topics.STEERING)
+"""The records built before the IMU's, in the order the core takes them."""
 
 
 class LiveMapper:
@@ -17,9 +23,11 @@ class LiveMapper:
     Each message updates the channels its topic gives (value and stamp: ``header.stamp``,
     else the receive time). A message on the clock channel's topic then yields the
     core's three inputs, built from the latest values: the twist stamped as its
-    ``x_v_mps`` source, the steering as its ``stl_m`` source, the IMU as the clock
-    message. An unmapped ``y_v_mps`` is passed as 0 (the node refuses models that read
-    it); an unmapped yaw rate or acceleration makes no sample.
+    ``x_v_mps`` source, the steering as its ``stl_m`` source (each record as the source
+    of its first mapped channel), the IMU as the clock message. An unmapped ``y_v_mps``
+    (any model input outside the ``measurable`` set) is passed as 0 (the node refuses
+    models that read it), a channel that is no model input (the rack's rate) as NaN;
+    an unmapped measurable channel (yaw rate, acceleration, ...) makes no sample.
     """
 
     def __init__(self, topic_map: TopicMap) -> None:
@@ -50,18 +58,29 @@ class LiveMapper:
             raise BagError(f"{topic}: a mapped field is missing or not a number: {err}") from None
         if topic != self.clock_topic:
             return None
-        v = self._values
-        needed = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
-        if any(n not in v for n in needed):
+        v = dict(self._values)
+        if any(n not in v for n in feature_set("measurable")):
             return None
-        x_v, y_v = v["x_v_mps"][1], v.get("y_v_mps", (0, 0.0))[1]
         if heading is not None:
             if self._yaw is None:
                 return None
+            x_v, y_v = v["x_v_mps"][1], v.get("y_v_mps", (0, 0.0))[1]
             c, s = math.cos(self._yaw), math.sin(self._yaw)
-            x_v, y_v = c * x_v + s * y_v, -s * x_v + c * y_v
-        return (
-            TwistFields(v["x_v_mps"][0], x_v, y_v),
-            SteeringFields(v["stl_m"][0], v["stl_m"][1], math.nan),
-            ImuFields(stamp, v["x_a_mps2"][1], v["y_a_mps2"][1], v["yaw_rate_radps"][1]),
-        )
+            v["x_v_mps"] = (v["x_v_mps"][0], c * x_v + s * y_v)
+            v["y_v_mps"] = (v.get("y_v_mps", (0, 0.0))[0], -s * x_v + c * y_v)
+        twist, steering = (_record(t, v, None) for t in _PARTNERS)
+        return twist, steering, _record(topics.IMU, v, stamp)
+
+
+def _record(topic: str, values: dict[str, tuple[int, float]], stamp: int | None) -> Any:
+    """``topic``'s fields record from the latest mapped values, stamped ``stamp`` (None:
+    as the source of its first mapped channel)."""
+    row = []
+    for ch in registry.on_topic(topic):
+        if ch.name in values:
+            if stamp is None:
+                stamp = values[ch.name][0]
+            row.append(values[ch.name][1])
+        else:
+            row.append(0.0 if ch.model_input else math.nan)
+    return FIELDS_RECORDS[topic](stamp if stamp is not None else 0, *row)

@@ -11,6 +11,12 @@ Every message is built with all fields given explicitly (rosbags dataclasses hav
 defaults), and read back through attribute access only, so both back-ends go through
 the same lines of code.
 
+Which field carries which channel comes from the registry (:mod:`.channels`): a message
+is built as a skeleton per topic (the constant fields: orientation, covariances, joint
+names, zeros), then each channel's value is written at its field path; reading takes
+the same paths. So a channel added to the registry on an existing topic is published,
+read and recorded without a change here.
+
 Mapping (body frame at the CG, REP-103, SI units; all messages of one step carry the
 same ``header.stamp`` and ``frame_id = 'base_link'``):
 
@@ -27,30 +33,45 @@ same ``header.stamp`` and ``frame_id = 'base_link'``):
 sideslip`` (Float64)
 ==============================  ===========================================================
 
-IMU covariances (row-major 3×3, diagonal only): the channels we provide carry σ²
-from :class:`SensorNoiseSigma` (gyro z; accel x and y). The channels we do not provide
-(gyro x, y; accel z) are published as 0.0 with variance :data:`UNMEASURED_VARIANCE`
-(1e6), so a fusion node that reads the covariance gives them no weight instead of
-trusting a fake zero.
+IMU covariances (row-major 3×3, diagonal only): the channels we provide (the registry's
+IMU channels: gyro z; accel x and y) carry σ² from :class:`SensorNoiseSigma`. The
+channels we do not provide (gyro x, y; accel z) are published as 0.0 with variance
+:data:`UNMEASURED_VARIANCE` (1e6), so a fusion node that reads the covariance gives
+them no weight instead of trusting a fake zero.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cache
 from typing import Any, Final, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
+from . import channels as registry
 from . import topics
 from .errors import MessageFieldError
-from .sample import GroundTruth, SensorNoiseSigma, VehicleSample
+from .field_path import joint_of, parse, set_field
+from .message_fields import (
+    FIELDS_RECORDS,
+    NS_PER_S,
+    GroundTruthFields,
+    ImuFields,
+    SteeringFields,
+    TwistFields,
+    channel_values,
+    ground_truth_fields,
+    imu_fields,
+    stamp_ns,
+    steering_fields,
+    twist_fields,
+)
+from .sample import SensorNoiseSigma, VehicleSample
 
 UNMEASURED_VARIANCE: Final = 1.0e6
 """Variance put on IMU channels the contract does not provide (gyro x/y, accel z)."""
-
-NS_PER_S: Final = 1_000_000_000
 
 
 class MessageFactory(Protocol):
@@ -160,14 +181,27 @@ class ImuCovariances:
     linear_acceleration: npt.NDArray[np.float64]
 
 
+def _axis_variances(vector: str, sigma: SensorNoiseSigma) -> npt.NDArray[np.float64]:
+    """Diagonal 3×3 covariance of an Imu vector: σ² of the channel on each axis, else
+    :data:`UNMEASURED_VARIANCE` (a channel without a noise key is exact: 0)."""
+    variances = [UNMEASURED_VARIANCE] * 3
+    for ch in registry.on_topic(topics.IMU):
+        name, _, axis = ch.field.partition(".")
+        if name == vector:
+            std = 0.0 if ch.sigma is None else getattr(sigma, ch.sigma)
+            variances["xyz".index(axis)] = std**2
+    return np.diag(variances).ravel()
+
+
 def imu_covariances(sigma: SensorNoiseSigma) -> ImuCovariances:
     """IMU covariances for the given sensor noise (see the module docstring)."""
     orientation = np.zeros(9)
     orientation[0] = -1.0  # sensor_msgs/Imu: "no orientation estimate"
-    gyro = np.diag([UNMEASURED_VARIANCE, UNMEASURED_VARIANCE, sigma.yaw_rate_radps**2])
-    var_a = sigma.acceleration_mps2**2
-    accel = np.diag([var_a, var_a, UNMEASURED_VARIANCE])
-    return ImuCovariances(orientation, gyro.ravel(), accel.ravel())
+    return ImuCovariances(
+        orientation,
+        _axis_variances("angular_velocity", sigma),
+        _axis_variances("linear_acceleration", sigma),
+    )
 
 
 # --- sample -> messages ----------------------------------------------------------------------
@@ -192,9 +226,58 @@ def vector3(factory: MessageFactory, x: float = 0.0, y: float = 0.0, z: float = 
     return factory.Vector3(x=float(x), y=float(y), z=float(z))
 
 
-def _twist_stamped(factory: MessageFactory, hdr: Any, v_x: float, v_y: float, r: float) -> Any:
-    twist = factory.Twist(linear=vector3(factory, v_x, v_y), angular=vector3(factory, z=r))
-    return factory.TwistStamped(header=hdr, twist=twist)
+class JointStateShape(NamedTuple):
+    """The JointState the contract publishes: its joints and which arrays have values."""
+
+    joints: tuple[str, ...]
+    arrays: tuple[str, ...]
+    """Of ``position``, ``velocity``, ``effort``: those with one entry per joint (the
+    others are empty)."""
+
+
+@cache
+def joint_state_shape(topic: str = topics.STEERING) -> JointStateShape:
+    """From the registry's channels on ``topic``: ``(steering_rack,)``, position and velocity."""
+    paths = [ch.field for ch in registry.on_topic(topic)]
+    joints = tuple(dict.fromkeys(j for p in paths if (j := joint_of(p)) is not None))
+    used = {parse(p)[0].name for p in paths}
+    arrays = tuple(a for a in ("position", "velocity", "effort") if a in used)
+    return JointStateShape(joints, arrays)
+
+
+def _skeletons(
+    factory: MessageFactory, hdr: Any, cov: ImuCovariances, truth: bool
+) -> dict[str, Any]:
+    """The stamped sample topics' messages (ground truth only with ``truth``), with their
+    constant fields and zero values."""
+    joints = joint_state_shape()
+    arrays = {
+        a: np.zeros(len(joints.joints) if a in joints.arrays else 0, dtype=np.float64)
+        for a in ("position", "velocity", "effort")
+    }
+
+    def twist() -> Any:
+        return factory.TwistStamped(
+            header=hdr,
+            twist=factory.Twist(linear=vector3(factory), angular=vector3(factory)),
+        )
+
+    built = {
+        topics.IMU: factory.Imu(
+            header=hdr,
+            orientation=factory.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+            orientation_covariance=cov.orientation.copy(),
+            angular_velocity=vector3(factory),
+            angular_velocity_covariance=cov.angular_velocity.copy(),
+            linear_acceleration=vector3(factory),
+            linear_acceleration_covariance=cov.linear_acceleration.copy(),
+        ),
+        topics.TWIST: twist(),
+        topics.STEERING: factory.JointState(header=hdr, name=list(joints.joints), **arrays),
+    }
+    if truth:
+        built[topics.GROUND_TRUTH_TWIST] = twist()
+    return built
 
 
 def sample_to_messages(
@@ -210,113 +293,21 @@ def sample_to_messages(
     :func:`imu_covariances` of the same ``sigma``) to save work in a 400 Hz loop.
     """
     cov = covariances if covariances is not None else imu_covariances(sigma)
-    hdr = header(factory, sample.stamp_ns)
-    built: dict[str, Any] = {
-        topics.IMU: factory.Imu(
-            header=hdr,
-            orientation=factory.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
-            orientation_covariance=cov.orientation.copy(),
-            angular_velocity=vector3(factory, z=sample.yaw_rate_radps),
-            angular_velocity_covariance=cov.angular_velocity.copy(),
-            linear_acceleration=vector3(factory, sample.x_a_mps2, sample.y_a_mps2),
-            linear_acceleration_covariance=cov.linear_acceleration.copy(),
-        ),
-        topics.TWIST: _twist_stamped(factory, hdr, sample.x_v_mps, sample.y_v_mps, 0.0),
-        topics.STEERING: factory.JointState(
-            header=hdr,
-            name=[topics.STEERING_JOINT],
-            position=np.array([sample.stl_m], dtype=np.float64),
-            velocity=np.array([sample.stl_rate_mps], dtype=np.float64),
-            effort=np.zeros(0, dtype=np.float64),
-        ),
-    }
+    truth = sample.truth
+    built = _skeletons(factory, header(factory, sample.stamp_ns), cov, truth is not None)
+    for ch in registry.SENSOR:
+        set_field(built[ch.topic], ch.field, getattr(sample, ch.name))
     out = {topic: built[topic] for topic in topics.SENSOR_TOPICS}
-    if sample.truth is not None:
-        t = sample.truth
-        out[topics.GROUND_TRUTH_TWIST] = _twist_stamped(
-            factory, hdr, t.v_x_mps, t.v_y_mps, t.yaw_rate_radps
-        )
-        out[topics.GROUND_TRUTH_SIDESLIP] = factory.Float64(data=t.beta_rad)
+    if truth is not None:
+        out[topics.GROUND_TRUTH_TWIST] = built[topics.GROUND_TRUTH_TWIST]
+        for ch in registry.TRUTH:
+            attr = ch.name.removeprefix(registry.TRUTH_PREFIX)
+            set_field(out[ch.topic], ch.field, getattr(truth, attr))
+        out[topics.GROUND_TRUTH_SIDESLIP] = factory.Float64(data=truth.beta_rad)
     return out
 
 
-# --- messages -> fields ------------------------------------------------------------------------
-
-
-class ImuFields(NamedTuple):
-    """What the contract reads from /vehicle/imu."""
-
-    stamp_ns: int
-    x_a_mps2: float
-    y_a_mps2: float
-    yaw_rate_radps: float
-
-
-class TwistFields(NamedTuple):
-    """What the contract reads from /vehicle/twist."""
-
-    stamp_ns: int
-    x_v_mps: float
-    y_v_mps: float
-
-
-class SteeringFields(NamedTuple):
-    """What the contract reads from /vehicle/steering (rate NaN when not published)."""
-
-    stamp_ns: int
-    stl_m: float
-    stl_rate_mps: float
-
-
-class GroundTruthFields(NamedTuple):
-    """What the contract reads from /vehicle/ground_truth/twist."""
-
-    stamp_ns: int
-    truth: GroundTruth
-
-
-def stamp_ns(msg: Any) -> int:
-    """``msg.header.stamp`` as integer nanoseconds."""
-    stamp = msg.header.stamp
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
-
-
-def imu_fields(msg: Any) -> ImuFields:
-    """X_a, Y_a [m/s²] and ψ̇ [rad/s] of an Imu message of either back-end."""
-    acc = msg.linear_acceleration
-    return ImuFields(stamp_ns(msg), float(acc.x), float(acc.y), float(msg.angular_velocity.z))
-
-
-def twist_fields(msg: Any) -> TwistFields:
-    """X_v, Y_v [m/s] of a TwistStamped message of either back-end."""
-    lin = msg.twist.linear
-    return TwistFields(stamp_ns(msg), float(lin.x), float(lin.y))
-
-
-def steering_fields(msg: Any, topic: str = topics.STEERING) -> SteeringFields:
-    """STL [m] and its rate [m/s] of the ``steering_rack`` joint in a JointState.
-
-    Raises :class:`MessageFieldError` when the joint or its position is missing. A
-    missing velocity gives NaN: real steering sensors often publish position only.
-    """
-    names = list(msg.name)
-    try:
-        i = names.index(topics.STEERING_JOINT)
-    except ValueError:
-        msg_ = f"{topic}: JointState.name has no {topics.STEERING_JOINT!r} (names: {names})"
-        raise MessageFieldError(msg_) from None
-    if len(msg.position) <= i:
-        msg_ = f"{topic}: JointState.position has no entry for {topics.STEERING_JOINT!r}"
-        raise MessageFieldError(msg_)
-    rate = float(msg.velocity[i]) if len(msg.velocity) > i else float("nan")
-    return SteeringFields(stamp_ns(msg), float(msg.position[i]), rate)
-
-
-def ground_truth_fields(msg: Any) -> GroundTruthFields:
-    """Exact v_x, v_y [m/s] and ψ̇ [rad/s] of a ground-truth TwistStamped."""
-    twist = msg.twist
-    truth = GroundTruth(float(twist.linear.x), float(twist.linear.y), float(twist.angular.z))
-    return GroundTruthFields(stamp_ns(msg), truth)
+# --- messages -> sample ------------------------------------------------------------------------
 
 
 def messages_to_sample(messages: Mapping[str, Any]) -> VehicleSample:
@@ -330,18 +321,42 @@ def messages_to_sample(messages: Mapping[str, Any]) -> VehicleSample:
     if missing:
         msg = f"messages_to_sample: missing sensor topic(s) {missing}"
         raise MessageFieldError(msg)
-    imu = imu_fields(messages[topics.IMU])
-    twist = twist_fields(messages[topics.TWIST])
-    steer = steering_fields(messages[topics.STEERING])
+    values: dict[str, float] = {}
+    for topic in topics.SENSOR_TOPICS:
+        names = (ch.name for ch in registry.on_topic(topic))
+        values.update(zip(names, channel_values(messages[topic], topic), strict=True))
     gt = messages.get(topics.GROUND_TRUTH_TWIST)
     return VehicleSample(
-        stamp_ns=imu.stamp_ns,
-        x_v_mps=twist.x_v_mps,
-        y_v_mps=twist.y_v_mps,
-        x_a_mps2=imu.x_a_mps2,
-        y_a_mps2=imu.y_a_mps2,
-        yaw_rate_radps=imu.yaw_rate_radps,
-        stl_m=steer.stl_m,
-        stl_rate_mps=steer.stl_rate_mps,
+        stamp_ns=stamp_ns(messages[topics.IMU]),
         truth=ground_truth_fields(gt).truth if gt is not None else None,
+        **values,
     )
+
+
+__all__ = [
+    "FIELDS_RECORDS",
+    "NS_PER_S",
+    "UNMEASURED_VARIANCE",
+    "GroundTruthFields",
+    "ImuCovariances",
+    "ImuFields",
+    "JointStateShape",
+    "MessageFactory",
+    "RclpyMessages",
+    "SteeringFields",
+    "TwistFields",
+    "TypestoreMessages",
+    "channel_values",
+    "ground_truth_fields",
+    "header",
+    "imu_covariances",
+    "imu_fields",
+    "joint_state_shape",
+    "messages_to_sample",
+    "sample_to_messages",
+    "stamp_ns",
+    "stamp_to_sec_nanosec",
+    "steering_fields",
+    "twist_fields",
+    "vector3",
+]

@@ -4,24 +4,74 @@ Frame and signs: body frame at the centre of gravity (CG), REP-103: x forward, y
 z up, yaw counter-clockwise positive. Sideslip β = atan2(v_y, v_x) > 0 when the car
 slides to the left. Time stamps are integer nanoseconds (ROS time: simulated or wall).
 One step of the simulator is 2.5 ms (400 Hz).
+
+The channel fields of :class:`VehicleSample` and :class:`SampleArrays` and the σ fields
+of :class:`SensorNoiseSigma` come from the registry (:mod:`.channels`), in its order;
+the classes here hold what is not per channel (stamps, truth, validation).
 """
 
 from __future__ import annotations
 
+import inspect
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, fields
-from typing import Final
+from typing import TYPE_CHECKING, Final, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
+from . import channels as registry
+from .channels import KMH_TO_MPS
 from .errors import SampleArraysError
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-KMH_TO_MPS: Final = 1.0 / 3.6
+registry.validate()
+
+SENSOR_CHANNELS: Final[tuple[str, ...]] = tuple(ch.name for ch in registry.SENSOR)
+"""Float channels of a sample, in :class:`VehicleSample` field order."""
+
+TRUTH_CHANNELS: Final[tuple[str, ...]] = tuple(ch.name for ch in registry.TRUTH)
+"""Ground-truth channels of :class:`SampleArrays` (all present or all None)."""
+
+_Cls = TypeVar("_Cls", bound=type)
+
+
+_NO_DEFAULT: Final = object()
+
+
+def _fields_from_registry(
+    names: Iterable[str],
+    annotation: str,
+    *,
+    after: str | None = None,
+    default: object = _NO_DEFAULT,
+    doc: str = "",
+) -> Callable[[_Cls], _Cls]:
+    """Class decorator (under ``@dataclass``): one field per name, annotated
+    ``annotation`` (with ``default`` when given), inserted after the field ``after``
+    (None: at the end); ``doc`` is appended to the docstring."""
+
+    def insert(cls: _Cls) -> _Cls:
+        own = inspect.get_annotations(cls)
+        added = dict.fromkeys(names, annotation)
+        merged: dict[str, object] = {}
+        for key, value in own.items():
+            merged[key] = value
+            if key == after:
+                merged.update(added)
+        if after is None:
+            merged.update(added)
+        cls.__annotations__ = merged
+        if default is not _NO_DEFAULT:
+            for name in added:
+                setattr(cls, name, default)
+        cls.__doc__ = (cls.__doc__ or "") + doc
+        return cls
+
+    return insert
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,53 +94,33 @@ class GroundTruth:
         return math.atan2(self.v_y_mps, self.v_x_mps)
 
 
+_SENSOR_DOC: Final = "\n    Channels (from the registry):\n" + registry.describe(registry.SENSOR)
+
+
 @dataclass(frozen=True, slots=True)
+@_fields_from_registry(SENSOR_CHANNELS, "float", after="stamp_ns", doc=_SENSOR_DOC)
 class VehicleSample:
     """One time step of what the sensors measure (the paper's six inputs plus STL rate).
 
+    Fields: ``stamp_ns``, then one float per sensor channel of the registry (in its
+    order, so positional construction follows it), then ``truth``.
+
     Attributes:
         stamp_ns: measurement time [ns]; every message of the step carries it.
-        x_v_mps: longitudinal velocity X_v [m/s].
-        y_v_mps: lateral velocity Y_v [m/s].
-        x_a_mps2: longitudinal acceleration X_a [m/s²].
-        y_a_mps2: lateral acceleration Y_a [m/s²].
-        yaw_rate_radps: yaw rate ψ̇ [rad/s].
-        stl_m: steering rack travel STL [m] (positive steers left).
-        stl_rate_mps: steering rack speed [m/s].
         truth: exact motion when known (simulator), else None.
     """
 
     stamp_ns: int
-    x_v_mps: float
-    y_v_mps: float
-    x_a_mps2: float
-    y_a_mps2: float
-    yaw_rate_radps: float
-    stl_m: float
-    stl_rate_mps: float
     truth: GroundTruth | None = None
 
+    if TYPE_CHECKING:  # the channel fields, added from the registry
 
-SENSOR_CHANNELS: Final[tuple[str, ...]] = (
-    "x_v_mps",
-    "y_v_mps",
-    "x_a_mps2",
-    "y_a_mps2",
-    "yaw_rate_radps",
-    "stl_m",
-    "stl_rate_mps",
-)
-"""Float channels of a sample, in :class:`VehicleSample` field order."""
-
-TRUTH_CHANNELS: Final[tuple[str, ...]] = (
-    "truth_v_x_mps",
-    "truth_v_y_mps",
-    "truth_yaw_rate_radps",
-)
-"""Ground-truth channels of :class:`SampleArrays` (all present or all None)."""
+        def __getattr__(self, name: str) -> float: ...
 
 
 @dataclass(frozen=True, eq=False)
+@_fields_from_registry(TRUTH_CHANNELS, "FloatArray | None", default=None)
+@_fields_from_registry(SENSOR_CHANNELS, "FloatArray", after="stamp_ns", doc=_SENSOR_DOC)
 class SampleArrays:
     """Columnar samples: equal-length 1-D arrays, one row per time step.
 
@@ -98,19 +128,16 @@ class SampleArrays:
     increasing; every other channel is float64. The truth channels are either all
     arrays or all None. Construction validates and converts (copies only when the
     dtype differs); arrays are made read-only so the frozen record stays frozen.
+
+    Fields: ``stamp_ns``, the sensor channels, then the truth channels (default None),
+    all in registry order.
     """
 
     stamp_ns: IntArray
-    x_v_mps: FloatArray
-    y_v_mps: FloatArray
-    x_a_mps2: FloatArray
-    y_a_mps2: FloatArray
-    yaw_rate_radps: FloatArray
-    stl_m: FloatArray
-    stl_rate_mps: FloatArray
-    truth_v_x_mps: FloatArray | None = None
-    truth_v_y_mps: FloatArray | None = None
-    truth_yaw_rate_radps: FloatArray | None = None
+
+    if TYPE_CHECKING:  # the channel fields, added from the registry
+
+        def __getattr__(self, name: str) -> FloatArray: ...
 
     def __post_init__(self) -> None:
         stamps = _column(self, "stamp_ns", np.int64)
@@ -165,14 +192,8 @@ class SampleArrays:
             raise IndexError(msg)
         truth = None
         if self.has_truth:
-            assert self.truth_v_x_mps is not None
-            assert self.truth_v_y_mps is not None
-            assert self.truth_yaw_rate_radps is not None
-            truth = GroundTruth(
-                float(self.truth_v_x_mps[i]),
-                float(self.truth_v_y_mps[i]),
-                float(self.truth_yaw_rate_radps[i]),
-            )
+            exact = {_truth_attr(n): float(getattr(self, n)[i]) for n in TRUTH_CHANNELS}
+            truth = GroundTruth(**exact)
         values = {name: float(getattr(self, name)[i]) for name in SENSOR_CHANNELS}
         return VehicleSample(stamp_ns=int(self.stamp_ns[i]), truth=truth, **values)
 
@@ -191,11 +212,9 @@ class SampleArrays:
             columns[name] = np.array([getattr(s, name) for s in samples], dtype=np.float64)
         if samples and all(with_truth):
             truths = [s.truth for s in samples]
-            columns["truth_v_x_mps"] = np.array([t.v_x_mps for t in truths if t], np.float64)
-            columns["truth_v_y_mps"] = np.array([t.v_y_mps for t in truths if t], np.float64)
-            columns["truth_yaw_rate_radps"] = np.array(
-                [t.yaw_rate_radps for t in truths if t], np.float64
-            )
+            for name in TRUTH_CHANNELS:
+                attr = _truth_attr(name)
+                columns[name] = np.array([getattr(t, attr) for t in truths if t], np.float64)
         return cls(**columns)  # type: ignore[arg-type]
 
     def beta_rad(self) -> FloatArray:
@@ -211,6 +230,11 @@ class SampleArrays:
             dtype=np.float64,
             count=len(self),
         )
+
+
+def _truth_attr(column: str) -> str:
+    """The :class:`GroundTruth` attribute of a truth column (``truth_v_x_mps`` → ``v_x_mps``)."""
+    return column.removeprefix(registry.TRUTH_PREFIX)
 
 
 def _column(
@@ -243,24 +267,23 @@ def _column(
     return col
 
 
+_NOISE_DOC: Final = "\n    Attributes (from the registry):\n" + "\n".join(
+    f"        {n.name}: σ of {n.of} [{n.unit}]." for n in registry.NOISE
+)
+
+
 @dataclass(frozen=True, slots=True)
+@_fields_from_registry([n.name for n in registry.NOISE], "float", doc=_NOISE_DOC)
 class SensorNoiseSigma:
     """Standard deviation σ of each sensor's Gaussian noise, in SI units.
 
     Used by the simulator to add noise and by the message mapping to fill covariances
-    (variance = σ²).
-
-    Attributes:
-        velocity_mps: σ of X_v and Y_v [m/s].
-        acceleration_mps2: σ of X_a and Y_a [m/s²].
-        yaw_rate_radps: σ of ψ̇ [rad/s].
-        stl_m: σ of the steering rack travel [m].
+    (variance = σ²). One field per :data:`~.channels.NOISE` key, in its order.
     """
 
-    velocity_mps: float
-    acceleration_mps2: float
-    yaw_rate_radps: float
-    stl_m: float
+    if TYPE_CHECKING:  # the σ fields, added from the registry
+
+        def __getattr__(self, name: str) -> float: ...
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -272,14 +295,20 @@ class SensorNoiseSigma:
     @classmethod
     def paper(cls) -> SensorNoiseSigma:
         """The paper's noise: 1 km/h, 0.1 m/s², 0.2 deg/s, 1 mm (converted to SI)."""
-        return cls(
-            velocity_mps=1.0 * KMH_TO_MPS,
-            acceleration_mps2=0.1,
-            yaw_rate_radps=math.radians(0.2),
-            stl_m=1.0e-3,
-        )
+        return cls(**{n.name: n.paper for n in registry.NOISE})
 
     @classmethod
     def none(cls) -> SensorNoiseSigma:
         """No noise (ground-truth-quality sensors): all σ = 0."""
-        return cls(0.0, 0.0, 0.0, 0.0)
+        return cls(**{n.name: 0.0 for n in registry.NOISE})
+
+
+__all__ = [
+    "KMH_TO_MPS",
+    "SENSOR_CHANNELS",
+    "TRUTH_CHANNELS",
+    "GroundTruth",
+    "SampleArrays",
+    "SensorNoiseSigma",
+    "VehicleSample",
+]

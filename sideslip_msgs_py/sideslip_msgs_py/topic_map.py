@@ -39,7 +39,6 @@ sensor) are NaN: the ``measurable`` features do not read them.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,15 +47,16 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from . import channels as registry
 from .bag_raw import open_raw_bag
 from .errors import BagError, MissingTopicError
 from .features import CHANNELS
-from .messages import stamp_ns
+from .field_path import field_value
+from .message_fields import stamp_ns
 from .sample import SampleArrays
 
 REFERENCE_KEYS: Final = ("beta_rad", "v_x_mps", "v_y_mps")
 _HEADING_KINDS: Final = ("quaternion", "yaw_rad")
-_INDEX = re.compile(r"^(\w+)\[([^\]]+)\]$")
 
 
 class TopicMapError(ValueError):
@@ -120,7 +120,7 @@ class TopicMap:
         channels = {
             name: _source(spec, source, f"channels.{name}") for name, spec in raw_channels.items()
         }
-        bad = sorted(set(channels) - set(CHANNELS))  # (the rack's rate is derived)
+        bad = sorted(set(channels) - set(CHANNELS))  # (other channels: derived or NaN)
         if bad:
             raise TopicMapError(f"{source}: unknown channel(s) {bad}; channels: {list(CHANNELS)}")
         raw_reference = dict(data.get("reference") or {})
@@ -209,24 +209,6 @@ def _heading(spec: Any, source: str, where: str) -> HeadingSource | None:
 
 
 # --- reading ----------------------------------------------------------------------------------
-
-
-def field_value(msg: Any, path: str) -> Any:
-    """The value at a dotted ``path`` of a message (see the module docstring)."""
-    value = msg
-    for part in path.split("."):
-        m = _INDEX.match(part)
-        name, index = (m.group(1), m.group(2)) if m else (part, None)
-        value = getattr(value, name)
-        if index is not None:
-            if index.lstrip("-").isdigit():
-                value = value[int(index)]
-            else:  # a JointState joint by name
-                names = list(msg.name)
-                if index not in names:
-                    raise KeyError(f"no joint {index!r} (joints: {names})")
-                value = value[names.index(index)]
-    return value
 
 
 def heading_yaw(value: Any, kind: str) -> float:
@@ -331,6 +313,7 @@ def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
     for name in CHANNELS:
         if name not in cols:
             cols[name] = np.full(stamps.shape, np.nan)
+    _derive_other_channels(cols, stamps)
     ref = topic_map.reference
     truth: dict[str, npt.NDArray[np.float64]] = {}
     if "beta_rad" in ref:
@@ -345,12 +328,24 @@ def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
         truth = {"truth_v_x_mps": v_x, "truth_v_y_mps": v_y}
     if truth:
         truth["truth_yaw_rate_radps"] = cols["yaw_rate_radps"]
-    # The rack's rate is no model input; the bag format has a column for it.
-    cols["stl_rate_mps"] = (
-        np.gradient(cols["stl_m"], stamps * 1e-9) if stamps.size > 2 else np.zeros(stamps.shape)
-    )
     samples = SampleArrays(stamp_ns=stamps, **cols, **truth)
     return MappedBag(path, samples, tuple(notes), raw.truncated)
+
+
+def _derive_other_channels(
+    cols: dict[str, npt.NDArray[np.float64]], stamps: npt.NDArray[np.int64]
+) -> None:
+    """The sample columns a topic map does not give (no model input): a rate by
+    differencing its channel (the rack's rate from STL), any other NaN."""
+    for ch in registry.SENSOR:
+        if ch.name in cols:
+            continue
+        if ch.rate_of is None:
+            cols[ch.name] = np.full(stamps.shape, np.nan)
+        elif stamps.size > 2:
+            cols[ch.name] = np.gradient(cols[ch.rate_of], stamps * 1e-9)
+        else:
+            cols[ch.name] = np.zeros(stamps.shape)
 
 
 def _to_body(

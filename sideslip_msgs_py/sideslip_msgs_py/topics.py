@@ -2,8 +2,9 @@
 
 This module is the only place in the project that spells a topic name. Every topic
 uses a standard interface (no custom .msg), so any ROS 2 stack can subscribe without
-building our packages. Units and field meanings are documented in
-:mod:`sideslip_msgs_py.messages`.
+building our packages. Which field carries which channel, in which unit, is the
+registry's (:mod:`sideslip_msgs_py.channels`); :mod:`sideslip_msgs_py.messages` builds
+and reads the messages.
 """
 
 from __future__ import annotations

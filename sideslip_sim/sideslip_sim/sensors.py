@@ -2,10 +2,15 @@
 
 Noise is zero-mean, independent per channel and per sample, with σ from a
 `SensorNoiseSigma` (the paper's profile by default: 1 km/h, 0.1 m/s², 0.2 deg/s, 1 mm).
-It is drawn from a numpy PCG64 generator seeded per run, so a bag is reproducible
-whatever order or process generated it. Ground truth is never noisy. The STL rate
-(JointState velocity) carries no noise: the paper gives no σ for it, and differencing
-the noisy STL would make a useless channel.
+Which σ a channel gets is the contract registry's (``sideslip_msgs_py.channels``):
+channels are drawn in registry order, so a channel appended there leaves the noise of
+the others as it was. It is drawn from a numpy PCG64 generator seeded per run, so a bag
+is reproducible whatever order or process generated it. Ground truth is never noisy.
+The STL rate (JointState velocity) carries no noise: the paper gives no σ for it, and
+differencing the noisy STL would make a useless channel.
+
+:func:`exact_samples` is the one place that says which simulator output feeds which
+contract channel.
 """
 
 from __future__ import annotations
@@ -14,7 +19,8 @@ import zlib
 
 import numpy as np
 
-from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
+from sideslip_msgs_py import channels as registry
+from sideslip_msgs_py.sample import TRUTH_CHANNELS, SampleArrays, SensorNoiseSigma
 from sideslip_msgs_py.timing import STEP_NS
 from sideslip_sim.simulate import SimResult
 
@@ -68,16 +74,8 @@ def add_noise(
         # Draw even when std == 0 so that changing one σ leaves the others' noise intact.
         return values + std * rng.standard_normal(n)
 
-    return SampleArrays(
-        stamp_ns=samples.stamp_ns,
-        x_v_mps=noisy(samples.x_v_mps, sigma.velocity_mps),
-        y_v_mps=noisy(samples.y_v_mps, sigma.velocity_mps),
-        x_a_mps2=noisy(samples.x_a_mps2, sigma.acceleration_mps2),
-        y_a_mps2=noisy(samples.y_a_mps2, sigma.acceleration_mps2),
-        yaw_rate_radps=noisy(samples.yaw_rate_radps, sigma.yaw_rate_radps),
-        stl_m=noisy(samples.stl_m, sigma.stl_m),
-        stl_rate_mps=samples.stl_rate_mps,
-        truth_v_x_mps=samples.truth_v_x_mps,
-        truth_v_y_mps=samples.truth_v_y_mps,
-        truth_yaw_rate_radps=samples.truth_yaw_rate_radps,
-    )
+    columns = {name: getattr(samples, name) for name in TRUTH_CHANNELS}
+    for ch in registry.SENSOR:  # registry order: the draw order
+        values = getattr(samples, ch.name)
+        columns[ch.name] = values if ch.sigma is None else noisy(values, getattr(sigma, ch.sigma))
+    return SampleArrays(stamp_ns=samples.stamp_ns, **columns)
