@@ -1,4 +1,4 @@
-"""Bags → aligned runs → train/validation split: the runs the trainer's windows come from.
+"""Bags → aligned runs: the runs the trainer's windows come from.
 
 The pipeline, each step a plain function or frozen dataclass:
 
@@ -8,8 +8,8 @@ The pipeline, each step a plain function or frozen dataclass:
    aligned on the IMU stamp) into :class:`Run` records and a :class:`DatasetReport`.
    Nothing is dropped silently: bags without ground truth, unreadable or truncated bags,
    gaps in time and non-finite samples each get a line naming the bag.
-3. :func:`split_runs` splits by bag, never by window, so no window of a validation bag
-   overlaps a training window.
+3. :mod:`.splits` splits them by bag or in time, never by window, so no validation
+   window overlaps a training window.
 4. :class:`~sideslip_training.normalize.Normalizer` (module :mod:`.normalize`) holds the
    z-score statistics, fitted on the training runs only.
 5. :class:`~sideslip_training.windows.WindowIndex` (module :mod:`.windows`) indexes the
@@ -17,7 +17,7 @@ The pipeline, each step a plain function or frozen dataclass:
 
 :func:`data_digest` fingerprints the runs for provenance.
 
-This module holds steps 1-3 only and does not re-export the other two: they build on
+This module holds steps 1-2 only and does not re-export the other two: they build on
 :class:`Run` and :class:`DatasetError` from here, so a re-export would make an import
 cycle. Import ``Normalizer`` from ``sideslip_training.normalize`` and ``WindowIndex`` /
 ``TorchWindows`` from ``sideslip_training.windows``.
