@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 import yaml
+from foreign_bag import RACK_PER_WHEEL_DEG, TOPIC_MAP
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
@@ -18,18 +19,11 @@ from sideslip_estimator.backends import Backend, create_backend
 from sideslip_estimator.mapped_inputs import mapped_inputs
 from sideslip_msgs_py.messages import ImuFields, TwistFields
 
-RACK_PER_WHEEL_DEG = 0.00021  # [m of rack travel per steering-wheel degree]
 T0_NS = 1_700_000_000 * 10**9
 
-# A car whose drivers publish an Imu, an Odometry and a steering-wheel angle in degrees.
-CHANNELS: dict[str, dict[str, Any]] = {
-    "x_a_mps2": {"topic": "/imu/data", "field": "linear_acceleration.x"},
-    "y_a_mps2": {"topic": "/imu/data", "field": "linear_acceleration.y"},
-    "yaw_rate_radps": {"topic": "/imu/data", "field": "angular_velocity.z"},
-    "x_v_mps": {"topic": "/odom", "field": "twist.twist.linear.x"},
-    "y_v_mps": {"topic": "/odom", "field": "twist.twist.linear.y"},
-    "stl_m": {"topic": "/steering_wheel_deg", "field": "data", "scale": RACK_PER_WHEEL_DEG},
-}
+# A car whose drivers publish an Imu, an Odometry and a steering-wheel angle in degrees:
+# the channels of the foreign bag's topic map.
+CHANNELS: dict[str, dict[str, Any]] = TOPIC_MAP["channels"]
 TYPES = {
     "/imu/data": "sensor_msgs/msg/Imu",
     "/odom": "nav_msgs/msg/Odometry",
