@@ -69,7 +69,8 @@ class Observation:
     publishers: Mapping[str, Sequence[str]] = field(default_factory=dict)
     """Per input topic: the nodes publishing it with the contract's type."""
     wrong_frames: Sequence[str] = ()
-    """One line per input topic whose messages carry another frame than the contract's."""
+    """One line per input topic whose latest message carried another frame than the
+    contract's."""
     input_rate_hz: float | None = None
     """Measured IMU rate (None until measured)."""
     expected_rate_hz: float = RATE_HZ
@@ -224,7 +225,9 @@ class StatusTracker:
         self.silence_timeout_s = silence_timeout_s
         self.last_rx: dict[str, float | None] = dict.fromkeys(input_topics)
         """Per input topic (as subscribed): steady time of the last arrival (None: never)."""
-        self.wrong_frames: dict[str, str] = {}  # topic -> the line reporting it
+        self.wrong_frames: dict[str, str] = {}
+        """Per input topic whose latest message carried another frame: the line saying so."""
+        self._frames_logged: set[str] = set()  # topics whose mismatch was logged (once)
         self._seen = Counts.of(stats)
         self._latencies_s: list[float] = []
         self._sigmas_rad: list[float] = []
@@ -244,15 +247,25 @@ class StatusTracker:
         self._sigmas_rad.append(math.sqrt(variance_rad2))
 
     def frame_mismatch(self, topic: str, frame_id: str) -> str | None:
-        """The line reporting a frame other than the contract's, the first time ``topic``
-        carries one (the frame is used as is); None otherwise."""
-        if frame_id == self.frame_id or not self.frame_id or topic in self.wrong_frames:
+        """Note the frame of ``topic``'s latest message: the status warns while it is
+        another than the contract's (the frame is used as is) and stops when the topic
+        carries the contract's again. Returns the line to log the first time the topic
+        carries a wrong frame (once per topic, so a topic that alternates between two
+        publishers does not flood the log); None otherwise."""
+        if frame_id == self.frame_id or not self.frame_id:
+            if self.wrong_frames:
+                self.wrong_frames.pop(topic, None)
             return None
-        line = (
-            f"{topic}: frame_id '{frame_id}', expected '{self.frame_id}' "
-            f"(used as if {self.frame_id})"
-        )
-        self.wrong_frames[topic] = line
+        line = self.wrong_frames.get(topic)
+        if line is None or f"frame_id '{frame_id}'," not in line:
+            line = (
+                f"{topic}: frame_id '{frame_id}', expected '{self.frame_id}' "
+                f"(used as if {self.frame_id})"
+            )
+            self.wrong_frames[topic] = line
+        if topic in self._frames_logged:
+            return None
+        self._frames_logged.add(topic)
         return line
 
     def rejection_due(self, reason: str, now_s: float) -> bool:

@@ -339,17 +339,24 @@ def _feed(core: Estimator, tracker: StatusTracker, k: int, now_s: float) -> None
         tracker.published(1e-4, out.estimate.variance_rad2)
 
 
-def test_a_frame_mismatch_is_reported_once_per_topic() -> None:
+def test_a_frame_mismatch_is_logged_once_per_topic_and_warned_while_it_lasts() -> None:
     tracker = _tracker(_core())
     line = "/vehicle/imu: frame_id 'imu_link', expected 'base_link' (used as if base_link)"
     assert tracker.frame_mismatch(IMU, "base_link") is None
     assert tracker.frame_mismatch(IMU, "imu_link") == line
     assert tracker.frame_mismatch(IMU, "imu_link") is None  # logged already
-    assert tracker.frame_mismatch(IMU, "map") is None  # still the one report for the topic
-    assert tracker.frame_mismatch(TWIST, "odom") is not None  # another topic: its own report
+    assert tracker.frame_mismatch(TWIST, "odom") is not None  # another topic: its own log
     obs = tracker.observe(_core(), {}, [], now_s=1.0)
     assert obs.wrong_frames[0] == line and len(obs.wrong_frames) == 2
     assert _assess(obs).level == DIAGNOSTIC_WARN
+    # The status says what the latest message carried: another wrong frame is named...
+    assert tracker.frame_mismatch(IMU, "map") is None  # ...but not logged again
+    assert "frame_id 'map'" in tracker.observe(_core(), {}, [], now_s=2.0).wrong_frames[0]
+    # ...and the warning ends when the topics carry the contract's frame again.
+    assert tracker.frame_mismatch(IMU, "base_link") is None
+    assert tracker.frame_mismatch(TWIST, "base_link") is None
+    assert tracker.observe(_core(), {}, [], now_s=3.0).wrong_frames == []
+    assert tracker.frame_mismatch(IMU, "imu_link") is None  # logged once per topic, ever
 
 
 def test_an_empty_frame_id_parameter_turns_the_frame_check_off() -> None:
