@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import platform
 import sys
 import tempfile
@@ -28,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from machine import cpu_model, git_commit
+from machine import cpu_model, emit_report, git_commit
 
 from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
 from sideslip_estimator.window import SampleWindow
@@ -196,11 +195,7 @@ def main(argv: list[str] | None = None) -> int:
         "command": " ".join(["python", "bench/inference.py", *(argv or sys.argv[1:])]),
         "update": results,
     }
-    text = json.dumps(report, indent=2)
-    print(text)
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + "\n")
+    emit_report(report, args.json)
     return 0
 
 

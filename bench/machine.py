@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import platform
 import subprocess
 from pathlib import Path
+from typing import Any
 
 
 def cpu_model() -> str:
@@ -25,3 +27,12 @@ def git_commit() -> str:
         return out.stdout.strip() or "unknown"
     except OSError:
         return "unknown"
+
+
+def emit_report(report: Any, path: Path | None) -> None:
+    """Print a benchmark's JSON report, and write it to ``path`` too when given."""
+    text = json.dumps(report, indent=2)
+    print(text)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text + "\n")

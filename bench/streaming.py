@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import subprocess
@@ -49,7 +48,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 from inference import random_artifact
-from machine import cpu_model, git_commit
+from machine import cpu_model, emit_report, git_commit
 
 from sideslip_estimator.backends.pso_lstm import PsoLstmBackend
 from sideslip_estimator.streaming import StreamingLstm
@@ -244,11 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         "command": " ".join(["python", "bench/streaming.py", *(argv or sys.argv[1:])]),
         "models": results,
     }
-    text = json.dumps(report, indent=2)
-    print(text)
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + "\n")
+    emit_report(report, args.json)
     return 0
 
 

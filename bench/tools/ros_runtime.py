@@ -18,7 +18,6 @@ Run alone: ``python bench/tools/ros_runtime.py --seconds 30`` (``make bench`` ru
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import signal
 import subprocess
@@ -40,6 +39,9 @@ from sideslip_msgs_py import topics
 from sideslip_msgs_py.messages import stamp_ns
 from sideslip_msgs_py.nodes.qos import profile_for
 from sideslip_msgs_py.nodes.runtime import make_executor
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/ when run as a script
+from machine import emit_report
 
 BIN = Path(sys.executable).parent
 PERIOD_NS = 2_500_000
@@ -238,10 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="also write the result here")
     args = parser.parse_args(argv)
     result = run(args.seconds, args.executor, backend=args.backend)
-    text = json.dumps(result, indent=2)
-    print(text)
-    if args.json:
-        args.json.write_text(text + "\n")
+    emit_report(result, args.json)
     return 0
 
 

@@ -26,7 +26,6 @@ Run: ``python bench/tools/soak.py --seconds 600 --load 2 --json docs/evaluation/
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import signal
@@ -43,7 +42,7 @@ import numpy as np
 # Run as a script (python bench/tools/soak.py) bench/ must be on the path, as it is for
 # bench/run.py, which imports this module.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from machine import cpu_model, git_commit
+from machine import cpu_model, emit_report, git_commit
 
 from tools.ros_runtime import BIN, Listener, _percentiles, _stop
 
@@ -198,11 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     result = run(args.seconds, args.load, warmup_s=min(args.warmup_s, args.seconds / 2))
     result["command"] = "python bench/tools/soak.py " + " ".join(argv or sys.argv[1:])
-    text = json.dumps(result, indent=2)
-    print(text)
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + "\n")
+    emit_report(result, args.json)
     return 0
 
 
