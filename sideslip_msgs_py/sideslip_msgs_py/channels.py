@@ -77,6 +77,8 @@ class Channel:
             (real steering sensors often publish position only).
         rate_of: the channel it is the time derivative of; a topic map derives it by
             differencing that channel.
+        lateral: changes sign when the car and its driving are mirrored left-right
+            (lateral velocity and acceleration, yaw rate, steering); see :mod:`.mirror`.
     """
 
     name: str
@@ -91,6 +93,7 @@ class Channel:
     model_input: bool = True
     required: bool = True
     rate_of: str | None = None
+    lateral: bool = False
 
 
 NOISE: Final[tuple[NoiseKey, ...]] = (
@@ -111,7 +114,7 @@ SENSOR: Final[tuple[Channel, ...]] = (
     ),
     Channel(
         "y_v_mps", "Y_v", "m/s", "lateral velocity, body frame at the CG, positive left",
-        topics.TWIST, "twist.linear.y", "velocity_mps", "speed_mps", ("paper",),
+        topics.TWIST, "twist.linear.y", "velocity_mps", "speed_mps", ("paper",), lateral=True,
     ),
     Channel(
         "x_a_mps2", "X_a", "m/s²", "longitudinal acceleration at the CG",
@@ -120,18 +123,21 @@ SENSOR: Final[tuple[Channel, ...]] = (
     Channel(
         "y_a_mps2", "Y_a", "m/s²", "lateral acceleration at the CG, positive left",
         topics.IMU, "linear_acceleration.y", "acceleration_mps2", "acceleration_mps2", _BOTH,
+        lateral=True,
     ),
     Channel(
         "yaw_rate_radps", "ψ̇", "rad/s", "yaw rate, counter-clockwise positive",
         topics.IMU, "angular_velocity.z", "yaw_rate_radps", "yaw_rate_radps", _BOTH,
+        lateral=True,
     ),
     Channel(
         "stl_m", "STL", "m", "steering rack travel, positive steers left",
-        topics.STEERING, f"position{_RACK}", "stl_m", "stl_m", _BOTH,
+        topics.STEERING, f"position{_RACK}", "stl_m", "stl_m", _BOTH, lateral=True,
     ),
     Channel(
         "stl_rate_mps", "STL rate", "m/s", "steering rack speed (no model input)",
         topics.STEERING, f"velocity{_RACK}", model_input=False, required=False, rate_of="stl_m",
+        lateral=True,
     ),
 )  # fmt: skip
 """The sensor channels, in sample field order (= window column order of the inputs)."""
@@ -143,11 +149,11 @@ TRUTH: Final[tuple[Channel, ...]] = (
     ),
     Channel(
         "truth_v_y_mps", "v_y", "m/s", "exact lateral velocity at the CG, positive left",
-        topics.GROUND_TRUTH_TWIST, "twist.linear.y", model_input=False,
+        topics.GROUND_TRUTH_TWIST, "twist.linear.y", model_input=False, lateral=True,
     ),
     Channel(
         "truth_yaw_rate_radps", "ψ̇", "rad/s", "exact yaw rate",
-        topics.GROUND_TRUTH_TWIST, "twist.angular.z", model_input=False,
+        topics.GROUND_TRUTH_TWIST, "twist.angular.z", model_input=False, lateral=True,
     ),
 )  # fmt: skip
 """The ground-truth channels (simulator only): ``GroundTruth``'s fields with ``truth_``."""
@@ -196,6 +202,8 @@ def validate() -> None:
             raise ChannelRegistryError(f"{where}: in feature sets but not a model input")
         if ch.rate_of is not None and ch.rate_of not in seen:
             raise ChannelRegistryError(f"{where}: rate_of {ch.rate_of!r} must come before it")
+        if ch.rate_of is not None and ch.lateral != channel(ch.rate_of).lateral:
+            raise ChannelRegistryError(f"{where}: lateral must match {ch.rate_of}'s")
         if (ch in TRUTH) != ch.name.startswith(TRUTH_PREFIX):
             raise ChannelRegistryError(f"{where}: truth channels (only) start {TRUTH_PREFIX!r}")
         seen.append(ch.name)

@@ -14,11 +14,12 @@ from hypothesis import strategies as st
 
 from sideslip_msgs_py import model_inputs as mi
 from sideslip_msgs_py.features import CHANNELS
+from sideslip_msgs_py.mirror import LATERAL_CHANNELS
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 DT = 0.0025
 CAR = VehicleDescription(1500.0, 2.7, 1.2, 0.55, 1.55, 1.6, 0.32)
-ODD = ("y_v_mps", "y_a_mps2", "yaw_rate_radps", "stl_m")  # change sign when mirrored
+ODD = LATERAL_CHANNELS  # change sign when mirrored
 
 
 def _columns(n: int, seed: int) -> dict[str, np.ndarray]:

@@ -196,6 +196,13 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-epochs", type=int, help="override the profile's epoch limit")
     p.add_argument("--stride", type=int, help="override the profile's window stride [samples]")
     p.add_argument("--patience", type=int, help="override the profile's early-stopping patience")
+    p.add_argument(
+        "--mirror",
+        action="store_true",
+        help="also train on every training run mirrored left-right (steering, lateral "
+        "velocity and acceleration, yaw rate and β negated): a car is symmetric, so this "
+        "doubles the data; validation and test stay as recorded (docs/training.md)",
+    )
     p.add_argument("--batch-size", type=int, help="override the profile's batch size")
     p.add_argument("--swarm-size", type=int, help="override the profile's PSO swarm size")
     p.add_argument("--iterations", type=int, help="override the profile's PSO iterations")

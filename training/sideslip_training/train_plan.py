@@ -177,6 +177,7 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         seed=args.seed,
         topic_map=args.topic_map,
         stride=args.stride,
+        mirror=args.mirror,
     )
     data = load_training_data(
         choice,

@@ -9,6 +9,7 @@ raises :class:`~.cli_errors.CliError`, its message naming the option.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from sideslip_msgs_py.mirror import mirrored
 from sideslip_msgs_py.topic_map import TopicMap
 
 from .cli_errors import CliError
@@ -50,6 +52,7 @@ class DataChoice:
     seed: int
     topic_map: Path | None
     stride: int | None
+    mirror: bool = False
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,23 @@ class TrainingData:
     val: WindowIndex
     stride: int
     split: str
+    mirror: bool = False
+
+
+MIRROR_SUFFIX: Final = "~mirror"
+
+
+def with_mirrored(runs: Sequence[Run]) -> list[Run]:
+    """``runs`` followed by each run mirrored left-right (:mod:`sideslip_msgs_py.mirror`),
+    named ``<name>~mirror`` and kept in its bag, so a split by bag never separates a run
+    from its mirror image."""
+    return [
+        *runs,
+        *(
+            dataclasses.replace(r, name=r.name + MIRROR_SUFFIX, samples=mirrored(r.samples))
+            for r in runs
+        ),
+    ]
 
 
 def split_mode(split: str, runs: Sequence[Run]) -> str:
@@ -149,6 +169,9 @@ def load_training_data(
     topic_map = TopicMap.load(choice.topic_map) if choice.topic_map else None
     load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
     train_runs, val_runs, test_runs, mode = _split(choice, load, log)
+    if choice.mirror:
+        train_runs = with_mirrored(train_runs)
+        log(f"--mirror: {len(train_runs) // 2} training run(s) also mirrored left-right")
     runs = [*train_runs, *val_runs]
     check_features(runs, spec.channels)
     if spec.needs_observer:
@@ -177,7 +200,9 @@ def load_training_data(
         f"{len(train_runs)} training run(s), {len(train.ends)} windows; "
         f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
     )
-    return TrainingData(runs, train_runs, val_runs, test_runs, normalizer, train, val, stride, mode)
+    return TrainingData(
+        runs, train_runs, val_runs, test_runs, normalizer, train, val, stride, mode, choice.mirror
+    )
 
 
 def sample_period_s(runs: Sequence[Run]) -> float:
