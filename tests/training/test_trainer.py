@@ -67,6 +67,27 @@ def test_early_stopping_keeps_the_best_epoch_weights(data):
     assert again == pytest.approx(best, rel=1e-6)
 
 
+def test_weight_averaging_keeps_the_averaged_weights_it_scored(data):
+    from sideslip_training.trainer import mae_deg
+
+    _train, val, norm = data
+    cpu = torch.device("cpu")
+    plain = train_model(_cfg(seed=3, max_epochs=4), *data)
+    avg = train_model(_cfg(seed=3, max_epochs=4, average_weights=True), *data)
+    again = train_model(_cfg(seed=3, max_epochs=4, average_weights=True), *data)
+    # The same steps (same seed), but what is scored and returned is the average.
+    assert [r.train_loss for r in avg.history] == [r.train_loss for r in plain.history]
+    assert any(
+        not torch.equal(a, b)
+        for a, b in zip(avg.model.state_dict().values(), plain.model.state_dict().values())
+    )
+    for a, b in zip(avg.model.state_dict().values(), again.model.state_dict().values()):
+        assert torch.equal(a, b)
+    scored = mae_deg(avg.model, val.to_torch(cpu), norm, cpu, len(val.ends))
+    assert scored == pytest.approx(avg.best_val_mae_deg, rel=1e-6)
+    assert avg.history[avg.best_epoch - 1].val_mae_deg == avg.best_val_mae_deg
+
+
 def test_a_run_that_never_yields_a_finite_epoch_is_an_error(data):
     with pytest.raises(ValueError, match="no epoch"):
         train_model(_cfg(learning_rate=1e30, max_epochs=2, seed=0), *data)

@@ -197,6 +197,12 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--stride", type=int, help="override the profile's window stride [samples]")
     p.add_argument("--patience", type=int, help="override the profile's early-stopping patience")
     p.add_argument(
+        "--average-weights",
+        action="store_true",
+        help="score and keep a moving average of the weights over about the last epoch "
+        "instead of the last step's (docs/training.md, 'Weight averaging')",
+    )
+    p.add_argument(
         "--mirror",
         action="store_true",
         help="also train on every training run mirrored left-right (steering, lateral "

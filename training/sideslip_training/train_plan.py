@@ -153,6 +153,7 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         batch_size=prof.batch_size,
         seed=args.seed,
         device=str(pick_device(args.device)),
+        average_weights=args.average_weights,
     )
     if args.ray_address:
         from .parallel import import_ray
