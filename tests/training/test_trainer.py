@@ -77,12 +77,10 @@ def test_weight_averaging_keeps_the_averaged_weights_it_scored(data):
     again = train_model(_cfg(seed=3, max_epochs=4, average_weights=True), *data)
     # The same steps (same seed), but what is scored and returned is the average.
     assert [r.train_loss for r in avg.history] == [r.train_loss for r in plain.history]
-    assert any(
-        not torch.equal(a, b)
-        for a, b in zip(avg.model.state_dict().values(), plain.model.state_dict().values())
-    )
-    for a, b in zip(avg.model.state_dict().values(), again.model.state_dict().values()):
-        assert torch.equal(a, b)
+    kept, last, rerun = (r.model.state_dict().values() for r in (avg, plain, again))
+    assert any(not torch.equal(a, b) for a, b in zip(kept, last, strict=True))
+    kept = avg.model.state_dict().values()
+    assert all(torch.equal(a, b) for a, b in zip(kept, rerun, strict=True))
     scored = mae_deg(avg.model, val.to_torch(cpu), norm, cpu, len(val.ends))
     assert scored == pytest.approx(avg.best_val_mae_deg, rel=1e-6)
     assert avg.history[avg.best_epoch - 1].val_mae_deg == avg.best_val_mae_deg
