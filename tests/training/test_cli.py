@@ -96,6 +96,7 @@ def test_pso_run_saves_history_and_resumes_to_the_same_result(sim_bag_dir: Path,
     model = tmp_path / "pso.safetensors"
     args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
     args[args.index("--max-epochs") + 1] = "1"
+    args += ["--mirror", "no"]  # 36 trainings: the search is under test, not the data
     assert train_main(args) == 0
     run_dir = tmp_path / "pso.run"
     history = json.loads((run_dir / "pso_history.json").read_text())
@@ -188,6 +189,7 @@ def test_resume_refuses_another_run_s_data(
     model = tmp_path / "pso.safetensors"
     args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
     args[args.index("--max-epochs") + 1] = "1"
+    args += ["--mirror", "no"]  # 36 trainings: the search is under test, not the data
     assert train_main(args) == 0
     config = (tmp_path / "pso.run" / "config.json").read_text()
     other = tmp_path / "other"
@@ -246,7 +248,8 @@ def test_bags_at_another_rate_are_resampled_to_the_models_rate_or_refused(
     assert train_main([*args, "--hidden-units", "4"]) == 0
     config = json.loads((tmp_path / "m.run" / "config.json").read_text())
     assert config["sample_period_s"] == pytest.approx(0.0025)
-    bags = {b.split("#")[0] for b in config["train_bags"] + config["val_bags"]}
+    bags = {b.split("#")[0].removesuffix("~mirror") for b in config["train_bags"]}
+    bags |= {b.split("#")[0] for b in config["val_bags"]}
     assert bags == {"r400_0", "r400_1", "r400_2", "r100"}  # r20 refused
     # At a rate of its own the model is trained at that rate.
     out50 = tmp_path / "m50.safetensors"
@@ -370,7 +373,7 @@ def test_one_long_recording_trains_on_its_start_and_is_tested_on_its_end(
     assert train_main([*args, "--test-fraction", "0.3", "--out", str(out), *TINY]) == 0
     config = json.loads((tmp_path / "m.run" / "config.json").read_text())
     assert config["split"] == "time"
-    assert config["train_bags"] == ["drive"]
+    assert config["train_bags"] == ["drive", "drive~mirror"]  # small data: mirrored too
     assert config["val_bags"] == ["drive@val"] and config["test_bags"] == ["drive@test"]
     metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
     test = metrics["test"]

@@ -1,5 +1,6 @@
 """``sideslip-train --mirror``: every training run is also trained on mirrored left-right,
-kept beside its original, while validation and test stay as recorded."""
+kept beside its original, while validation and test stay as recorded; by default only
+when the training part is small."""
 
 from __future__ import annotations
 
@@ -14,11 +15,13 @@ from sideslip_training.export import load_model
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
 
 
-def test_mirror_adds_a_mirrored_copy_of_each_training_run_only(make_arrays, write_arrays, tmp_path):
+def test_a_small_data_set_is_mirrored_by_default_training_runs_only(
+    make_arrays, write_arrays, tmp_path
+):
     write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
-    args += ["--features", "measurable", "--test-fraction", "0.3", "--mirror"]
+    args += ["--features", "measurable", "--test-fraction", "0.3"]
     assert train_main([*args, "--out", str(out), *TINY]) == 0
     config = json.loads((tmp_path / "m.run" / "config.json").read_text())
     assert config["train_bags"] == ["drive", "drive~mirror"]
@@ -35,13 +38,23 @@ def test_mirror_adds_a_mirrored_copy_of_each_training_run_only(make_arrays, writ
     assert metrics["refit_epochs"] == metrics["best_epoch"]
 
 
-def test_without_mirror_the_training_runs_are_the_recorded_ones(
-    make_arrays, write_arrays, tmp_path
-):
+def test_mirror_no_trains_on_the_recorded_runs_only(make_arrays, write_arrays, tmp_path):
     write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
-    assert train_main([*args, "--test-fraction", "0.3", "--out", str(out), *TINY]) == 0
+    args += ["--test-fraction", "0.3", "--mirror", "no"]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
     config = json.loads((tmp_path / "m.run" / "config.json").read_text())
     assert config["train_bags"] == ["drive"]
-    assert config["args"]["mirror"] is False
+    assert config["normalizer"]["beta_mean"] != pytest.approx(0.0, abs=1e-9)
+
+
+def test_auto_mirrors_only_a_small_training_part() -> None:
+    from sideslip_training.cli_errors import CliError
+    from sideslip_training.training_data import wants_mirror
+
+    assert wants_mirror("auto", 999_999, 10) and not wants_mirror("auto", 1_000_000, 10)
+    assert not wants_mirror("auto", 300_000, 2)  # a profile with stride 2: 200 k is small
+    assert wants_mirror("yes", 10**9, 10) and not wants_mirror("no", 10, 10)
+    with pytest.raises(CliError, match="--mirror"):
+        wants_mirror("maybe", 10, 10)

@@ -162,7 +162,7 @@ def test_a_separate_validation_fleet_is_used_as_given(sim_bag_dir: Path, tmp_pat
     args = ["--data", str(train), "--val", str(val), "--model", "lstm", "--hidden-units", "8"]
     assert train_main([*args, "--out", str(model), *TINY]) == 0
     config = json.loads((tmp_path / "m.run" / "config.json").read_text())
-    assert sorted(config["train_bags"]) == ["dlc_70", "sine_60"]
+    assert sorted(config["train_bags"]) == ["dlc_70", "dlc_70~mirror", "sine_60", "sine_60~mirror"]
     assert sorted(config["val_bags"]) == ["sine_80", "straight_50"]
     other = tmp_path / "other.safetensors"
     code = train_main([*args[:2], "--val", str(sim_bag_dir), *args[4:], "--out", str(other), *TINY])

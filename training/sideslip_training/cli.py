@@ -198,16 +198,20 @@ def _train_parser() -> argparse.ArgumentParser:
     p.add_argument("--patience", type=int, help="override the profile's early-stopping patience")
     p.add_argument(
         "--average-weights",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=True,
         help="score and keep a moving average of the weights over about the last epoch "
-        "instead of the last step's (docs/training.md, 'Weight averaging')",
+        "instead of the last step's (default on; docs/training.md, 'Small data')",
     )
     p.add_argument(
         "--mirror",
-        action="store_true",
+        choices=["auto", "yes", "no"],
+        default="auto",
         help="also train on every training run mirrored left-right (steering, lateral "
         "velocity and acceleration, yaw rate and β negated): a car is symmetric, so this "
-        "doubles the data; validation and test stay as recorded (docs/training.md)",
+        "doubles the data; validation and test stay as recorded. auto (default): when the "
+        "training part is small (under 1 M samples with the quick profile, as for the "
+        "stride; docs/training.md, 'Small data')",
     )
     p.add_argument("--batch-size", type=int, help="override the profile's batch size")
     p.add_argument("--swarm-size", type=int, help="override the profile's PSO swarm size")

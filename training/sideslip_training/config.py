@@ -56,10 +56,13 @@ class TrainProfile:
 
 
 PROFILES: Final[dict[str, TrainProfile]] = {
-    # A laptop CPU in minutes: every 10th window, short patience, a small swarm.
+    # A laptop CPU in minutes: every 10th window, short patience, a small swarm. Up to 60
+    # epochs: with averaged weights the validation curve is smooth enough for early
+    # stopping to decide, and on 3-min recordings the best epoch was 30-55 (30 was the
+    # cap before; docs/training.md, "Small data").
     "quick": TrainProfile(
         name="quick",
-        max_epochs=30,
+        max_epochs=60,
         patience=4,
         batch_size=256,
         stride=10,
