@@ -32,7 +32,7 @@ SENSOR = (
     *SENSOR,
     Channel(
         "roll_rate_radps", "φ̇", "rad/s", "roll rate, positive right side down",
-        topics.IMU, "angular_velocity.x", "yaw_rate_radps", "yaw_rate_radps",
+        topics.IMU, "angular_velocity.x", "yaw_rate_radps", "yaw_rate_radps", lateral=True,
     ),
 )
 """
@@ -97,6 +97,8 @@ est = Estimator(create_backend("kinematic", {}, 100), EstimatorParams(window_ste
 result = replay(est, replay_columns(noisy))
 assert result.rejected == 0 and np.isfinite(result.beta_rad[-1])
 np.testing.assert_array_equal(est.window.rows()[:, -1], noisy.roll_rate_radps[-100:])
+from sideslip_msgs_py.mirror import mirrored
+np.testing.assert_array_equal(mirrored(noisy).roll_rate_radps, -noisy.roll_rate_radps)
 np.savez(
     out / "channels.npz",
     stamp_ns=exact.stamp_ns,
