@@ -15,15 +15,21 @@ from sideslip_training.export import load_model
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
 
 
+def _train_on_one_recording(make_arrays, write_arrays, tmp_path, *options: str) -> dict:  # type: ignore[no-untyped-def]
+    """Train a tiny LSTM on one 10-s recording split in time; its config.json."""
+    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--test-fraction", "0.3", *options]
+    assert train_main([*args, "--out", str(tmp_path / "m.safetensors"), *TINY]) == 0
+    return json.loads((tmp_path / "m.run" / "config.json").read_text())
+
+
 def test_a_small_data_set_is_mirrored_by_default_training_runs_only(
     make_arrays, write_arrays, tmp_path
 ):
-    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
-    out = tmp_path / "m.safetensors"
-    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
-    args += ["--features", "measurable", "--test-fraction", "0.3"]
-    assert train_main([*args, "--out", str(out), *TINY]) == 0
-    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    config = _train_on_one_recording(
+        make_arrays, write_arrays, tmp_path, "--features", "measurable"
+    )
     assert config["train_bags"] == ["drive", "drive~mirror"]
     assert config["val_bags"] == ["drive@val"] and config["test_bags"] == ["drive@test"]
     # A run and its mirror image: the lateral inputs and β average to zero exactly.
@@ -32,19 +38,14 @@ def test_a_small_data_set_is_mirrored_by_default_training_runs_only(
         if name in LATERAL_CHANNELS:
             assert abs(mean) <= 1e-12 * std, name
     assert abs(norm["beta_mean"]) <= 1e-12 * norm["beta_std"]
-    meta = load_model(out)[1]
+    meta = load_model(tmp_path / "m.safetensors")[1]
     assert meta.beta_mean == pytest.approx(0.0, abs=1e-12)
     metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
     assert metrics["refit_epochs"] == metrics["best_epoch"]
 
 
 def test_mirror_no_trains_on_the_recorded_runs_only(make_arrays, write_arrays, tmp_path):
-    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
-    out = tmp_path / "m.safetensors"
-    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
-    args += ["--test-fraction", "0.3", "--mirror", "no"]
-    assert train_main([*args, "--out", str(out), *TINY]) == 0
-    config = json.loads((tmp_path / "m.run" / "config.json").read_text())
+    config = _train_on_one_recording(make_arrays, write_arrays, tmp_path, "--mirror", "no")
     assert config["train_bags"] == ["drive"]
     assert config["normalizer"]["beta_mean"] != pytest.approx(0.0, abs=1e-9)
 

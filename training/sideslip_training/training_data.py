@@ -186,7 +186,8 @@ def load_training_data(
     topic_map = TopicMap.load(choice.topic_map) if choice.topic_map else None
     load = {"channels": spec.channels, "step_s": spec.dt_s, "topic_map": topic_map}
     train_runs, val_runs, test_runs, mode = _split(choice, load, log)
-    mirror = wants_mirror(choice.mirror, sum(len(r) for r in train_runs), max_stride)
+    recorded = sum(len(r) for r in train_runs)  # samples as recorded, before any mirror
+    mirror = wants_mirror(choice.mirror, recorded, max_stride)
     if mirror:
         train_runs = with_mirrored(train_runs)
         log(f"mirror: {len(train_runs) // 2} training run(s) also mirrored left-right")
@@ -206,7 +207,6 @@ def load_training_data(
     if stride is None:
         # Little data (a recording of minutes): every window, not every 10th; big data
         # (the fleet, over a million samples) keeps the profile's stride.
-        recorded = sum(len(r) for r in train_runs) // (2 if mirror else 1)
         stride = min(max_stride, max(1, recorded // SAMPLES_PER_STRIDE))
     train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
     val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
