@@ -34,7 +34,8 @@ Exactness: float64 arithmetic by default (the float32 weights and inputs convert
 exactly), so the result is the network's exact output up to float64 rounding (~1e-16 in
 y); the float32 torch path differs from it by its own float32 rounding (~1e-7). The
 activations are exact identities, not approximations, evaluated over all four gates in
-one numpy call thanks to gate rows pre-scaled by powers of two (:class:`_Gates`).
+one numpy call thanks to gate rows pre-scaled by powers of two
+(:class:`~sideslip_estimator.lstm_cells.Gates`).
 ``dtype=np.float32`` runs the same algorithm in float32, about twice as fast, with
 errors of torch's own size (a few 1e-7 in y on the shipped models), not bit for bit.
 ``kernel="numba"`` (float32) advances the streamed layers with one compiled call per
@@ -55,7 +56,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 from typing import Final
 
 import numpy as np
@@ -68,118 +68,10 @@ from sideslip_msgs_py.artifact import (
     read_artifact,
 )
 
-FloatArray = npt.NDArray[np.float64]
+from .lstm_cells import Direction, FloatArray, Gates
 
 KERNELS: Final = ("numpy", "numba")
 """How the batched step is computed: numpy calls, or one compiled numba call."""
-
-
-_TANH_SCALES: Final = (0.5, 0.5, 0.5, 1.0)
-"""Row scales (i, f, o, g) for one tanh: σ(z) = ½·tanh(z/2) + ½, g = tanh(z)."""
-_EXP_SCALES: Final = (-1.0, -1.0, -1.0, -2.0)
-"""Row scales (i, f, o, g) for one exp: σ(z) = 1/(1 + e^(−z)), g = tanh(z) = 2σ(2z) − 1."""
-
-
-def _reordered(tensor: np.ndarray, hidden: int, scales: tuple[float, ...]) -> FloatArray:
-    """A gate-stacked tensor (4H on axis 0, PyTorch order i, f, g, o) as float64 in the
-    order i, f, o, g, each gate's rows times its scale (a power of two: exact), so that
-    one elementwise function over all 4H rows serves every gate (:class:`_Gates`)."""
-    t = np.asarray(tensor, dtype=np.float64)
-    i, f, g, o = (t[k * hidden : (k + 1) * hidden] for k in range(4))
-    return np.concatenate([s * v for s, v in zip(scales, (i, f, o, g), strict=True)])
-
-
-class _Gates:
-    """A buffer of gate pre-activations (4H, …) in the order of :func:`_reordered` and
-    the LSTM cell update that reads it, in place and without allocating.
-
-    Two exact forms of the activations (measured with numpy 2.4 on AVX-512):
-    ``exp`` takes 1/(1 + e^(−z)) over all rows, then 2σ − 1 on g's rows: numpy's float64
-    exp is twice as fast as its tanh, which makes a batched float64 step 6-8 % faster;
-    ``tanh`` takes tanh over all rows, then ½·t + ½ on i, f, o's rows: faster in float32
-    and for a single state (fewer numpy calls).
-    """
-
-    def __init__(self, buffer: FloatArray, hidden: int, form: str) -> None:
-        h = hidden
-        self.buffer = buffer
-        self.exp = form == "exp"
-        self.i, self.f, self.o, self.g = (buffer[k * h : (k + 1) * h] for k in range(4))
-        self.sigmoid = buffer[: 3 * h]
-
-    def cell(self, c: FloatArray, tmp: FloatArray, h_out: FloatArray) -> None:
-        """c ← f·c + i·g, h_out ← o·tanh(c), from the pre-activations in the buffer
-        (overwritten); batch (4H, W) and single state (4H,) alike."""
-        a = self.buffer
-        if self.exp:
-            with np.errstate(over="ignore"):  # e^(−z) = inf gives σ = 0 exactly
-                np.exp(a, out=a)
-            np.add(a, 1.0, out=a)
-            np.divide(1.0, a, out=a)
-            np.multiply(self.g, 2.0, out=self.g)
-            np.subtract(self.g, 1.0, out=self.g)
-        else:
-            np.tanh(a, out=a)
-            np.multiply(self.sigmoid, 0.5, out=self.sigmoid)
-            np.add(self.sigmoid, 0.5, out=self.sigmoid)
-        np.multiply(self.f, c, out=c)
-        np.multiply(self.i, self.g, out=tmp)
-        np.add(c, tmp, out=c)
-        np.tanh(c, out=tmp)
-        np.multiply(self.o, tmp, out=h_out)
-
-
-@dataclass(frozen=True)
-class _Direction:
-    """One direction of one layer, in the gate order and scales of :func:`_reordered`."""
-
-    w_ih: FloatArray
-    """(4H, inputs)"""
-    w_hh_t: FloatArray
-    """(H, 4H): W_hh transposed, for a batch-1 step h · W_hh^T"""
-    bias: FloatArray
-    """(4H,) b_ih + b_hh"""
-    form: str
-    """The activation form of :class:`_Gates` the scales are for."""
-
-    @classmethod
-    def of(
-        cls, tensors: Mapping[str, np.ndarray], name: str, hidden: int, dtype: np.dtype, form: str
-    ) -> _Direction:
-        """The weights of ``lstm.*_{name}`` (name: ``l0``, ``l1_reverse``, ...) in ``dtype``
-        (the bias sum in float64, then rounded), scaled for the activation ``form``."""
-        scales = _EXP_SCALES if form == "exp" else _TANH_SCALES
-        b = _reordered(tensors[f"lstm.bias_ih_{name}"], hidden, scales)
-        b += _reordered(tensors[f"lstm.bias_hh_{name}"], hidden, scales)
-        w_hh = _reordered(tensors[f"lstm.weight_hh_{name}"], hidden, scales)
-        return cls(
-            _reordered(tensors[f"lstm.weight_ih_{name}"], hidden, scales).astype(dtype),
-            np.ascontiguousarray(w_hh.T, dtype=dtype),
-            b.astype(dtype),
-            form,
-        )
-
-    def run(self, inputs: FloatArray, *, reverse: bool, steps: int | None = None) -> FloatArray:
-        """Hidden outputs (T, H) of this direction over ``inputs`` (T, inputs) from a
-        zero state, batch 1, in the inputs' time order; with ``steps``, only the first
-        ``steps`` processed (from the end when ``reverse``); the rest stay zero."""
-        length, hidden, dtype = inputs.shape[0], self.w_hh_t.shape[0], self.bias.dtype
-        projected = inputs @ self.w_ih.T
-        projected += self.bias
-        out = np.zeros((length, hidden), dtype)
-        gates = _Gates(np.empty(4 * hidden, dtype), hidden, self.form)
-        c = np.zeros(hidden, dtype)
-        tmp = np.empty(hidden, dtype)
-        h = np.zeros(hidden, dtype)
-        order = range(length - 1, -1, -1) if reverse else range(length)
-        for n, t in enumerate(order):
-            if steps is not None and n == steps:
-                break
-            np.matmul(h, self.w_hh_t, out=gates.buffer)
-            np.add(gates.buffer, projected[t], out=gates.buffer)
-            gates.cell(c, tmp, h)
-            out[t] = h
-        return out
 
 
 class StreamingLstm:
@@ -237,11 +129,11 @@ class StreamingLstm:
         streamed = 1 if self.bidirectional else layers
         batched = "exp" if dt == np.float64 and kernel == "numpy" else "tanh"
         forward = [
-            _Direction.of(tensors, f"l{k}", h, dt, batched if k < streamed else "tanh")
+            Direction.of(tensors, f"l{k}", h, dt, batched if k < streamed else "tanh")
             for k in range(layers)
         ]
         reverse = [
-            _Direction.of(tensors, f"l{k}_reverse", h, dt, "tanh")
+            Direction.of(tensors, f"l{k}_reverse", h, dt, "tanh")
             for k in range(layers if self.bidirectional else 0)
         ]
         head_w = np.asarray(tensors["head.weight"], dtype=np.float64).reshape(-1)
@@ -259,7 +151,7 @@ class StreamingLstm:
         self._z[::block] = 1.0
         self._fresh = self._z[:, 0].copy()
         self._c = np.zeros((streamed, h, w), dt)
-        self._gates = _Gates(np.empty((4 * h, w), dt), h, forward[0].form)
+        self._gates = Gates(np.empty((4 * h, w), dt), h, forward[0].form)
         self._tmp = np.empty((h, w), dt)
         self._w_ih0 = forward[0].w_ih
         self._bias0 = forward[0].bias
@@ -293,7 +185,7 @@ class StreamingLstm:
             self._bwd_c = np.zeros(h, dt)
             self._bwd_h = np.empty(h, dt)
             self._bwd_tmp = np.empty(h, dt)
-            self._bwd_gates = _Gates(np.empty(4 * h, dt), h, reverse[0].form)
+            self._bwd_gates = Gates(np.empty(4 * h, dt), h, reverse[0].form)
         if self.per_window_recurrences:
             # Layer 0's forward outputs of every window in flight, by (column, step), and
             # the last W rows twice over (row n at n mod W and n mod W + W) so the window

@@ -57,11 +57,11 @@ import numpy.typing as npt
 
 from sideslip_msgs_py.features import channel_indices
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
-from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.timing import STEP_S
 
 from .base import BackendError, Estimate, parameter_values, positive_values
 from .ukf_model import MIN_VX_MPS, SingleTrackMagicFormula, UkfParams
+from .ukf_parameters import TUNED_PARAMETERS, UKF_PARAMETERS
 
 X_V, X_A, Y_A, YAW_RATE, STL = channel_indices(
     ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
@@ -95,109 +95,14 @@ def _import_filterpy() -> Any:
     return kalman
 
 
-TUNED_PARAMETERS = (
-    "yaw_rate_sigma_radps",
-    "lateral_acceleration_sigma_mps2",
-    "longitudinal_velocity_sigma_mps",
-    "process_sigma_longitudinal_mps2",
-    "process_sigma_lateral_mps2",
-    "process_sigma_yaw_radps2",
-    "process_sigma_slip_rad_per_sqrt_s",
-    "process_sigma_friction_per_sqrt_s",
-)
-"""The parameters tuned on training data (``python -m sideslip_training.ukf_tuning``,
-PSO over their log10). The defaults: two rounds on 54 training bags (every 4th
-paper-train run and 24 randomized runs, seed 101, paper_sedan, paper noise), round 2
-centred on round 1; training β RMSE 0.075° → 0.058°."""
-
-
 class UkfBackend:
     """Unscented Kalman filter on the Magic Formula single-track model (module docstring)."""
 
     name = "ukf"
     sample_period_s = None  # any rate: works on the stamps
     channels = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
-    parameters = (
-        ParameterSpec(
-            "params_file",
-            "paper_sedan",
-            "UKF vehicle parameters: a shipped name (paper_sedan, compact_rwd) or a YAML "
-            "path written by `python -m sideslip_sim.ukf_params VEHICLE`.",
-        ),
-        ParameterSpec(
-            "yaw_rate_sigma_radps",
-            0.0029,
-            "Measurement 1-σ of the yaw rate [rad/s] (tuned; the paper's sensor: 0.0035).",
-        ),
-        ParameterSpec(
-            "lateral_acceleration_sigma_mps2",
-            0.96,
-            "Measurement 1-σ of a_y [m/s²]: sensor noise plus the model's error (tuned).",
-        ),
-        ParameterSpec(
-            "longitudinal_velocity_sigma_mps",
-            0.56,
-            "Measurement 1-σ of X_v [m/s] (tuned; the paper's sensor: 0.28).",
-        ),
-        ParameterSpec(
-            "process_sigma_longitudinal_mps2",
-            0.17,
-            "Process noise on v̇_x [m/s² per √Hz]: X_a noise and bias (tuned).",
-        ),
-        ParameterSpec(
-            "process_sigma_lateral_mps2",
-            0.018,
-            "Process noise on v̇_y [m/s² per √Hz]: how far the tyres may leave the model (tuned).",
-        ),
-        ParameterSpec(
-            "process_sigma_yaw_radps2",
-            0.072,
-            "Process noise on ψ̈ [rad/s² per √Hz] (tuned).",
-        ),
-        ParameterSpec(
-            "tyre_relaxation",
-            True,
-            "Model the tyres' lag: relaxed slip angles as states, relaxation lengths from "
-            "params_file (else the forces follow the kinematic slip at once).",
-        ),
-        ParameterSpec(
-            "process_sigma_slip_rad_per_sqrt_s",
-            0.012,
-            "Process noise on the relaxed slip angles [rad/√s] (with tyre_relaxation; tuned).",
-        ),
-        ParameterSpec(
-            "estimate_friction",
-            True,
-            "Estimate road μ as a random-walk state (else μ stays at friction_initial).",
-        ),
-        ParameterSpec(
-            "friction_initial",
-            1.0,
-            "Road μ relative to the tyre's test surface at (re)start [-].",
-        ),
-        ParameterSpec(
-            "friction_initial_sigma",
-            0.3,
-            "1-σ of friction_initial [-] (with estimate_friction).",
-        ),
-        ParameterSpec(
-            "process_sigma_friction_per_sqrt_s",
-            0.28,
-            "Random walk of road μ [1/√s] (with estimate_friction; tuned).",
-        ),
-        ParameterSpec(
-            "friction_memory_s",
-            20.0,
-            "Time constant [s] of μ's return to friction_initial (with estimate_friction): "
-            "in the tyres' linear range nothing observes μ, and this bounds its 1-σ at "
-            "process_sigma_friction_per_sqrt_s·√(memory/2) instead of letting it grow.",
-        ),
-        ParameterSpec(
-            "min_speed_mps",
-            3.0,
-            "Below this X_v [m/s] slip angles are ill-defined: the filter restarts, no estimate.",
-        ),
-    )
+    caveats: tuple[str, ...] = ()
+    parameters = UKF_PARAMETERS
 
     def __init__(self, values: Mapping[str, object], window_steps: int) -> None:
         del window_steps  # recursive: it reads the newest row only
