@@ -16,6 +16,7 @@ from typing import Any, Final
 import numpy as np
 
 from .errors import ContractError
+from .fleet_envelope import EnvelopeError, FleetEnvelope
 from .model_inputs import (
     ModelInputError,
     check_inputs,
@@ -128,6 +129,11 @@ class ModelMetadata:
     """The per-sample standard deviation model
     (:class:`~sideslip_msgs_py.uncertainty.Uncertainty` as a dict), or None: the
     estimator then publishes the validation RMSE² as every sample's variance."""
+    envelope: dict[str, Any] | None = field(default=None, hash=False)
+    """The range of the training cars
+    (:class:`~sideslip_msgs_py.fleet_envelope.FleetEnvelope` as a dict), recorded for
+    models that read the UKF observer; the estimator checks the deployed car's ``ukf``
+    params against it. None: not recorded (no check)."""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self) -> None:
@@ -205,6 +211,12 @@ class ModelMetadata:
             except UncertaintyError as err:
                 raise fail(str(err)) from None
             object.__setattr__(self, "uncertainty", unc.to_dict())
+        if self.envelope is not None:
+            try:
+                env = FleetEnvelope.from_dict(self.envelope)
+            except EnvelopeError as err:
+                raise fail(str(err)) from None
+            object.__setattr__(self, "envelope", env.to_dict())
         rmse = self.metrics.get(VALIDATION_RMSE_KEY)
         if rmse is not None and not (_is_real(rmse) and math.isfinite(rmse) and rmse >= 0):
             raise fail(f"metrics.{VALIDATION_RMSE_KEY} must be a finite number >= 0, got {rmse!r}")
