@@ -87,6 +87,8 @@ class EstimatorNode(rclpy.node.Node):
             f"backend {backend.model_id}, window {params.core.window_steps} samples; "
             f"inputs {', '.join(self.tracker.last_rx)}"
         )
+        for caveat in backend.caveats:
+            self.get_logger().warning(caveat)
 
     def _publisher(self, msg_type: Any, topic: str) -> Any:
         return self.create_publisher(msg_type, topic, profile_for(topic))
@@ -192,7 +194,8 @@ class EstimatorNode(rclpy.node.Node):
         for line in self.tracker.new_wrong_types(wrong_types):
             self.get_logger().error(f"wrong message type: {line}")
         obs = self.tracker.observe(self.core, publishers, wrong_types, now_s)
-        status = assess(obs, self.core.stats, self.params.backend, self.core.backend.model_id)
+        model = self.core.backend
+        status = assess(obs, self.core.stats, self.params.backend, model.model_id, model.caveats)
         stamp = self.tracker.stamp_ns(
             self.get_clock().now().nanoseconds, time.monotonic(), time.time_ns()
         )

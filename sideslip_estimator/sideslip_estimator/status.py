@@ -102,10 +102,17 @@ def _sigma_values(sigmas_rad: Sequence[float]) -> dict[str, str]:
     }
 
 
-def assess(obs: Observation, stats: EstimatorStats, backend: str, model_id: str) -> Status:
-    """Worst finding first: ERROR (unusable input), WARN (degraded), else OK."""
+def assess(
+    obs: Observation,
+    stats: EstimatorStats,
+    backend: str,
+    model_id: str,
+    caveats: Sequence[str] = (),
+) -> Status:
+    """Worst finding first: ERROR (unusable input), WARN (degraded, or a back-end's
+    standing ``caveats``), else OK."""
     errors: list[str] = list(obs.wrong_types)
-    warnings: list[str] = []
+    warnings: list[str] = list(caveats)
     new = obs.new
     for topic, nodes in obs.publishers.items():
         if len(nodes) > 1:

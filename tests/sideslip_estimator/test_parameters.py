@@ -70,6 +70,7 @@ STR_NAMES = {
     "model_file",
     "vehicle_file",
     "observer_params_file",
+    "outside_fleet",
     "engine",
     "frame_id",
     "topic_map_file",

@@ -17,7 +17,8 @@ import torch
 from safetensors.numpy import save_file
 
 from sideslip_estimator.backends import BACKENDS, BackendError, create_backend
-from sideslip_estimator.backends.pso_lstm import DEFAULT_SIGMA_RAD, SHIPPED_MODEL, PsoLstmBackend
+from sideslip_estimator.backends.model_files import SHIPPED_MODEL
+from sideslip_estimator.backends.pso_lstm import DEFAULT_SIGMA_RAD, PsoLstmBackend
 from sideslip_msgs_py.artifact import (
     METADATA_KEY,
     ModelMetadata,

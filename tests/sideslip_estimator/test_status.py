@@ -65,6 +65,12 @@ def test_healthy_estimator_is_ok_and_says_estimating() -> None:
     assert LEVEL_NAMES[status.level] == "OK"
 
 
+def test_a_back_ends_standing_caveat_keeps_the_status_at_warn() -> None:
+    caveat = "car x outside m.safetensors's 100 training cars (...): publishing the UKF's estimate"
+    status = assess(_obs(), _stats(), "pso_lstm", "pso_lstm(m)", (caveat,))
+    assert status.level == DIAGNOSTIC_WARN and status.message == caveat
+
+
 def test_values_report_backend_model_fill_ages_latency_and_counters() -> None:
     stats = _stats(
         rejected=Counter({"non_finite": 2, "stale_twist": 1}),

@@ -5,6 +5,7 @@ spun runs are used up to the spin; a separate validation fleet is honoured."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -14,16 +15,24 @@ import yaml
 
 from sideslip_estimator.backends import BackendError, create_backend
 from sideslip_estimator.estimator import Estimator, EstimatorParams
-from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.artifact import read_artifact, write_artifact
+from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from sideslip_msgs_py.model_inputs import INPUT_SETS
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_training import observer
 from sideslip_training.cli import train_main
 from sideslip_training.dataset import load_runs
-from sideslip_training.evaluate import kinematic, predict_run
+from sideslip_training.evaluate import kinematic, outside_training_cars, predict_run
 from sideslip_training.export import load_model
 
 from .test_cli import TINY, _feed
+
+
+def load_vehicle_dict(name: str) -> dict:
+    """A shipped simulator car as its bags record it."""
+    from sideslip_sim.vehicle import load_vehicle
+
+    return {k: v for k, v in dataclasses.asdict(load_vehicle(name)).items() if k != "source_path"}
 
 
 @pytest.mark.parametrize(
@@ -168,3 +177,91 @@ def test_a_separate_validation_fleet_is_used_as_given(sim_bag_dir: Path, tmp_pat
     code = train_main([*args[:2], "--val", str(sim_bag_dir), *args[4:], "--out", str(other), *TINY])
     assert code == 2
     assert "--val shares 2 bag(s) with --data" in capsys.readouterr().err
+
+
+def test_a_ukf_residual_publishes_the_ukf_on_a_car_outside_its_training_cars(
+    sim_bag_dir: Path, tmp_path: Path
+):
+    model = tmp_path / "obs.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_observer_signals", "--prior", "ukf"]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    _, meta = read_artifact(model)
+    runs, _ = load_runs([sim_bag_dir])
+    own = observer.params_of_vehicle(runs[0].run_metadata["vehicle"])
+    assert meta.envelope is not None and meta.envelope["cars"] == 1  # one simulated car
+    assert FleetEnvelope.from_dict(meta.envelope).outside(own) == []
+
+    car = tmp_path / "car.yaml"
+    car.write_text(
+        yaml.safe_dump(VehicleDescription.from_mapping(runs[0].run_metadata["vehicle"]).to_dict())
+    )
+    base = {"model_file": str(model), "vehicle_file": str(car)}
+
+    def estimates(values: dict[str, object]) -> tuple[list[float], tuple[str, ...]]:
+        backend = create_backend("pso_lstm", {**base, **values}, 100)
+        est = Estimator(backend, EstimatorParams(window_steps=100, max_gap_s=1.0))
+        return _feed(est, runs[0].samples), backend.caveats
+
+    own_file = tmp_path / "own.ukf.yaml"
+    own_file.write_text(yaml.safe_dump(own))
+    _, caveats = estimates({"observer_params_file": str(own_file)})
+    assert caveats == ()
+    # compact_rwd is not the training car: its quantities lie outside a one-car envelope.
+    fallback, caveats = estimates({"observer_params_file": "compact_rwd"})
+    assert len(caveats) == 1 and "publishing the UKF's estimate" in caveats[0]
+    assert "outside obs.safetensors's 1 training cars" in caveats[0]
+    ukf = create_backend("ukf", {"params_file": "compact_rwd"}, 100)
+    reference = _feed(
+        Estimator(ukf, EstimatorParams(window_steps=100, max_gap_s=1.0)), runs[0].samples
+    )
+    assert fallback == reference
+    network, caveats = estimates(
+        {"observer_params_file": "compact_rwd", "outside_fleet": "network"}
+    )
+    assert "publishing the model's estimate" in caveats[0]
+    assert len(network) == len(reference) and network != reference
+    with pytest.raises(BackendError, match=r"outside_fleet refuse: car compact_rwd outside"):
+        create_backend(
+            "pso_lstm",
+            {**base, "observer_params_file": "compact_rwd", "outside_fleet": "refuse"},
+            100,
+        )
+    with pytest.raises(BackendError, match=r"outside_fleet must be one of"):
+        create_backend(
+            "pso_lstm",
+            {**base, "observer_params_file": "compact_rwd", "outside_fleet": "x"},
+            100,
+        )
+
+
+def test_offline_scoring_answers_as_the_node_on_a_car_outside_the_training_cars(
+    sim_bag_dir: Path, tmp_path: Path
+):
+    trained = tmp_path / "obs.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_observer", "--prior", "ukf"]
+    assert train_main([*args, "--out", str(trained), *TINY]) == 0
+    tensors, meta = read_artifact(trained)
+    # The same network, told it was trained on compact_rwd only: the bags' car is outside.
+    other = FleetEnvelope.of_cars([observer.params_of_vehicle(load_vehicle_dict("compact_rwd"))])
+    model = tmp_path / "elsewhere.safetensors"
+    write_artifact(model, tensors, dataclasses.replace(meta, envelope=other.to_dict()))
+    runs, _ = load_runs([sim_bag_dir])
+    run = runs[0]
+    assert outside_training_cars(read_artifact(model)[1], run)
+    net, meta = load_model(model)
+    offline = predict_run(net, meta, run)
+    own = tmp_path / "own.ukf.yaml"
+    own.write_text(yaml.safe_dump(observer.params_of_vehicle(run.run_metadata["vehicle"])))
+    car = tmp_path / "car.yaml"
+    car.write_text(
+        yaml.safe_dump(VehicleDescription.from_mapping(run.run_metadata["vehicle"]).to_dict())
+    )
+    values = {"model_file": str(model), "observer_params_file": str(own), "vehicle_file": str(car)}
+    backend = create_backend("pso_lstm", values, meta.window_steps)
+    assert "publishing the UKF's estimate" in backend.caveats[0]
+    est = Estimator(backend, EstimatorParams(window_steps=meta.window_steps, max_gap_s=1.0))
+    np.testing.assert_allclose(_feed(est, run.samples), offline, rtol=0, atol=1e-12)
+    network = predict_run(net, meta, run, outside_fleet="network")
+    assert np.nanmax(np.abs(network - offline)) > 0

@@ -20,6 +20,7 @@ import numpy.typing as npt
 import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
+from sideslip_msgs_py.fleet_envelope import FleetEnvelope, publishes_prior
 from sideslip_msgs_py.model_inputs import INPUT_SETS
 from sideslip_msgs_py.timing import STEP_S
 from sideslip_msgs_py.uncertainty import Z_95, Uncertainty
@@ -131,6 +132,7 @@ def predict_run(
     *,
     vehicle: VehicleDescription | None = None,
     observer_params_file: str | None = None,
+    outside_fleet: str = "auto",
 ) -> FloatArray:
     """β̂ [rad] for every sample with a full window, i.e. samples[window-1:] (NaN where
     an input is not finite, e.g. the UKF observer gives no estimate below its speed).
@@ -138,7 +140,9 @@ def predict_run(
     ``vehicle``: the car, for a model that reads it, when the run's bag records none
     (default: the bag's, else the one stored in the model); ``observer_params_file``:
     the car's ``ukf`` params file, for a model that reads the UKF observer, when the
-    run's bag records no car.
+    run's bag records no car. ``outside_fleet``: as the estimator's parameter, for a car
+    outside the model's training cars (:func:`outside_training_cars`): with ``prior``
+    (``auto`` for a residual on the UKF) the prior alone is β̂, as the node publishes it.
     """
     fallback = vehicle
     if fallback is None and meta.vehicle is not None:
@@ -157,10 +161,28 @@ def predict_run(
             chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
     prior = spec.prior_rad(run, w)[w - 1 :]
+    if outside_training_cars(meta, run, observer_params_file) and publishes_prior(
+        outside_fleet, meta.prior
+    ):
+        return np.where(np.isfinite(prior), prior, np.nan)
     # A window with a non-finite input gives no estimate (as in training and the node).
     bad = np.concatenate([[0], np.cumsum(~np.isfinite(x).all(axis=1))])
     clean = bad[w:] - bad[:-w] == 0
     return np.where(clean, out * meta.beta_std + meta.beta_mean + prior, np.nan)
+
+
+def outside_training_cars(
+    meta: ModelMetadata, run: Run, observer_params_file: str | None = None
+) -> list[str]:
+    """What of the run's car lies outside the model's training cars (one line per
+    quantity, :mod:`sideslip_msgs_py.fleet_envelope`); empty when inside or when the
+    model records no envelope or reads no UKF observer."""
+    if meta.envelope is None or not meta.needs_observer:
+        return []
+    from .observer import run_params
+
+    params = run_params(run, observer_params_file)[0]
+    return FleetEnvelope.from_dict(meta.envelope).outside(params, run.name)
 
 
 def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:

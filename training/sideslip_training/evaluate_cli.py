@@ -84,7 +84,15 @@ def _evaluate_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from .evaluate import FilterError, evaluate_runs, model_label, pooled, table_csv, table_markdown
+    from .evaluate import (
+        FilterError,
+        evaluate_runs,
+        model_label,
+        outside_training_cars,
+        pooled,
+        table_csv,
+        table_markdown,
+    )
     from .evaluate_figures import plot_band, plot_error_pdfs, plot_traces
 
     args = _evaluate_parser().parse_args(argv)
@@ -131,6 +139,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             runs = [r for r in runs if len(r.samples) >= window]
         if not runs:
             raise CliError(f"no run of {args.data} holds a full window of {window} samples")
+        observer_file = str(args.observer_params) if args.observer_params else None
+        for label, _, meta in models:
+            outside = {r.name: outside_training_cars(meta, r, observer_file) for r in runs}
+            if any(outside.values()):
+                lines = sorted({line for found in outside.values() for line in found})
+                print(
+                    f"{label}: the car of {sum(map(bool, outside.values()))} run(s) lies "
+                    f"outside its training cars ({'; '.join(lines)}): scored as the estimator "
+                    "publishes it with outside_fleet auto (a residual on the UKF: the UKF alone)",
+                    file=sys.stderr,
+                )
     except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -149,7 +168,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             window_steps=windows.pop(),
             smoothing_steps=args.smoothing,
             vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
-            observer_params_file=str(args.observer_params) if args.observer_params else None,
+            observer_params_file=observer_file,
             filters=filters,
         )
     except (DatasetError, VehicleDescriptionError, FilterError) as err:

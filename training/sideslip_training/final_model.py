@@ -10,6 +10,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from sideslip_msgs_py.artifact import ModelMetadata
+from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 
 from . import __version__
 from .train_plan import TrainPlan
@@ -73,6 +74,16 @@ def model_metadata(
     training data, metrics, PSO record, provenance with ``wall_s`` [s] so far)."""
     normalizer, init = plan.data.normalizer, plan.init
     spec, vehicle = plan.spec, plan.vehicle
+    envelope = None
+    if spec.needs_observer:
+        from .observer import training_envelope
+
+        # The cars of the training runs (a recording without a vehicle record: the
+        # given params file's car); a fine-tuned model knows its init's cars as well.
+        env = training_envelope(plan.data.train_runs, spec.observer_params_file)
+        if init is not None and init.meta.envelope is not None:
+            env = env.union(FleetEnvelope.from_dict(init.meta.envelope))
+        envelope = env.to_dict()
     return ModelMetadata(
         architecture=architecture,
         hidden_units=result.model.config.hidden_units,
@@ -90,6 +101,7 @@ def model_metadata(
         prior=spec.prior,
         vehicle=vehicle.to_dict() if vehicle is not None else None,
         observer=dict(spec.observer) if spec.observer is not None else None,
+        envelope=envelope,
         created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         provenance={
             **(

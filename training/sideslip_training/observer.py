@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
 
 from .config import WINDOW_STEPS
@@ -105,6 +106,12 @@ def run_params(run: Run, params_file: str | None) -> tuple[dict[str, Any], float
     except (OSError, yaml.YAMLError) as err:
         raise DatasetError(f"observer params file {params_file}: cannot read ({err})") from None
     return dict(data), InputLimits().stl_m
+
+
+def training_envelope(runs: Sequence[Run], params_file: str | None) -> FleetEnvelope:
+    """The range of the cars of ``runs`` (:mod:`sideslip_msgs_py.fleet_envelope`), from
+    their ``ukf`` params as the observer columns were computed with."""
+    return FleetEnvelope.of_cars(run_params(run, params_file)[0] for run in runs)
 
 
 def _digest(run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float) -> str:

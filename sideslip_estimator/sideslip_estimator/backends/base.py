@@ -45,6 +45,9 @@ class Backend(Protocol):
     back-ends that integrate over the stamps and run at any rate."""
     channels: tuple[str, ...]
     """The window channels (``CHANNELS`` names) the back-end reads."""
+    caveats: tuple[str, ...]
+    """Standing limits of this configuration (e.g. a car outside the model's training
+    cars), reported as WARN in /sideslip/status; empty when there are none."""
 
     def reset(self) -> None: ...
 

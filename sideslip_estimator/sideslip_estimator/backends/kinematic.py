@@ -29,6 +29,7 @@ class KinematicBackend:
     name = "kinematic"
     sample_period_s = None  # any rate: works on the stamps
     channels = ("x_v_mps", "y_v_mps")
+    caveats: tuple[str, ...] = ()
     parameters = (
         ParameterSpec(
             "smoothing_steps",

@@ -43,7 +43,11 @@ a residual on the UKF) runs the ``ukf`` back-end beside its window, on every sam
 with the filter settings stored in the model and the car's ``ukf`` params file
 (``pso_lstm.observer_params_file``, required for such a model); a window in which the
 filter gave no estimate for some row (below its speed, after a restart) gives none.
-With ``model_file`` empty the default follows what is given: ``fleet_ukf_paper`` (the
+A model that records its training cars' envelope (:mod:`.model_context`) is checked
+against the car of that params file; outside it, ``pso_lstm.outside_fleet`` chooses
+between the UKF's own estimate (the default for a residual on the UKF), the model's,
+or no start, and the status WARNs. With ``model_file`` empty the default follows what
+is given: ``fleet_ukf_paper`` (the
 kinematic inputs plus the UKF) when ``observer_params_file`` names the car's file, else
 ``fleet_lstm_paper`` (the kinematic inputs only; nothing about the car needed).
 
@@ -61,20 +65,12 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from importlib import resources
-from pathlib import Path
-from typing import Any, Final
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
-from sideslip_msgs_py.artifact import (
-    VALIDATION_RMSE_KEY,
-    ArtifactError,
-    ModelMetadata,
-    denormalize_beta,
-    read_artifact,
-)
+from sideslip_msgs_py.artifact import VALIDATION_RMSE_KEY, denormalize_beta
 from sideslip_msgs_py.model_inputs import (
     OBSERVER_COLUMNS,
     columns_of_rows,
@@ -83,77 +79,20 @@ from sideslip_msgs_py.model_inputs import (
 )
 from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.uncertainty import Uncertainty
-from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from ..inputs import X_V as _X_V
 from ..inputs import Y_A as _Y_A
 from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
+from .model_context import fleet_check, observer_for, vehicle_for
+from .model_files import default_model, read_model
 from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
-SHIPPED_DIR: Final = "data/models"
-SHIPPED_MODEL: Final = f"{SHIPPED_DIR}/fleet_lstm_paper.safetensors"
-"""The default model, relative to the sideslip_estimator package: needs nothing but the
-measurements (no car parameters)."""
-SHIPPED_OBSERVER_MODEL: Final = f"{SHIPPED_DIR}/fleet_ukf_paper.safetensors"
-"""The default model when the car's ``ukf`` params file is given
-(``observer_params_file``): the same inputs plus the UKF observer, more accurate where
-the car's parameters are right."""
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
-
-
-def shipped_models() -> list[str]:
-    """Names of the models shipped in the package (``model_file`` accepts them)."""
-    folder = resources.files("sideslip_estimator").joinpath(SHIPPED_DIR)
-    if not folder.is_dir():
-        return []
-    return sorted(
-        p.name.removesuffix(".safetensors")
-        for p in folder.iterdir()
-        if p.name.endswith(".safetensors")
-    )
-
-
-def default_model(observer_params_file: str) -> str:
-    """The shipped default (relative to the package) for what the deployment gives: with
-    the car's ukf params file :data:`SHIPPED_OBSERVER_MODEL`, else :data:`SHIPPED_MODEL`."""
-    return SHIPPED_OBSERVER_MODEL if observer_params_file else SHIPPED_MODEL
-
-
-def _read_model(
-    model_file: str, default: str = SHIPPED_MODEL
-) -> tuple[dict[str, np.ndarray], ModelMetadata, str]:
-    """Tensors, metadata and a short label of the model ``model_file`` names: a path, the
-    name of a shipped model, or "" for ``default`` (a shipped path)."""
-    try:
-        if model_file and ("/" in model_file or model_file.endswith(".safetensors")):
-            path = Path(model_file).expanduser()
-            tensors, meta = read_artifact(path)
-            return tensors, meta, path.name
-        if model_file and model_file not in shipped_models():
-            msg = (
-                f"pso_lstm.model_file: {model_file!r} is neither a .safetensors path nor a "
-                f"shipped model (shipped: {', '.join(shipped_models())})"
-            )
-            raise BackendError(msg)
-        relative = f"{SHIPPED_DIR}/{model_file}.safetensors" if model_file else default
-        ref = resources.files("sideslip_estimator").joinpath(relative)
-        if not ref.is_file():
-            msg = (
-                f"pso_lstm.model_file: no model is shipped yet (expected "
-                f"sideslip_estimator/{relative}); train one with `sideslip-train` "
-                f"(see its --help) and set pso_lstm.model_file:=/path/to/model.safetensors"
-            )
-            raise BackendError(msg)
-        with resources.as_file(ref) as path:
-            tensors, meta = read_artifact(path)
-        return tensors, meta, f"{path.name} (shipped)"
-    except ArtifactError as err:
-        raise BackendError(f"pso_lstm.model_file: {err}") from None
 
 
 def _numba_available() -> bool:
@@ -196,6 +135,16 @@ class PsoLstmBackend:
             "(ukf.* inputs or the ukf prior); unused otherwise.",
         ),
         ParameterSpec(
+            "outside_fleet",
+            "auto",
+            "For a model that reads the UKF and records its training cars' range: what to "
+            "do when the car (observer_params_file) lies outside it. prior: publish the "
+            "UKF's own estimate (the network's correction was learnt on other cars); "
+            "network: publish the model's estimate; refuse: do not start; auto: prior for "
+            "a residual on the UKF, network otherwise. Both publishing choices WARN in "
+            "/sideslip/status.",
+        ),
+        ParameterSpec(
             "engine",
             "numba",
             "numba: the streaming engine (all in-flight windows advance by one batched LSTM "
@@ -220,7 +169,7 @@ class PsoLstmBackend:
         if threads < 1:
             raise BackendError(f"pso_lstm.threads must be >= 1, got {threads}")
         observer_file = str(v["observer_params_file"])
-        tensors, meta, label = _read_model(str(v["model_file"]), default_model(observer_file))
+        tensors, meta, label = read_model(str(v["model_file"]), default_model(observer_file))
         if window_steps != meta.window_steps:
             msg = (
                 f"pso_lstm.model_file {label}: the model reads {meta.window_steps}-step windows "
@@ -228,10 +177,13 @@ class PsoLstmBackend:
                 f"window_steps:={meta.window_steps}"
             )
             raise BackendError(msg)
-        self._vehicle = _vehicle_for(meta, str(v["vehicle_file"]), label)
+        self._vehicle = vehicle_for(meta, str(v["vehicle_file"]), label)
         self._channels = meta.channels
         self.channels = tuple(meta.channels)
-        self._observer = _observer_for(meta, observer_file, label, window_steps)
+        self._observer = observer_for(meta, observer_file, label, window_steps)
+        self.caveats, self._prior_only = fleet_check(
+            meta, self._observer, str(v["outside_fleet"]), label
+        )
         self._observed: deque[tuple[float, ...]] = deque(maxlen=window_steps)
 
         self.meta = meta
@@ -270,6 +222,7 @@ class PsoLstmBackend:
             f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}, "
             f"engine {engine}"
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
+            + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
             + ")"
         )
 
@@ -292,8 +245,10 @@ class PsoLstmBackend:
         if self._observer is not None:
             # The filter sees every sample, also while the window fills.
             seen = self._observer.update(rows, stamps_ns)
+            if self._prior_only and self.meta.prior == "ukf":
+                return seen  # outside the training cars: the UKF's estimate and variance
             self._observed.append(self._observer.observer_row(seen))
-        if self._window_net is None:
+        if self._window_net is None and not self._prior_only:
             # The engine gives None until the window is full and NaN for a window with a
             # non-finite input (an observer row without an estimate): no estimate.
             y = self._push(rows, stamps_ns)
@@ -317,6 +272,8 @@ class PsoLstmBackend:
             prior = prior_of_window(columns, self.meta.prior, self.dt_s)
             if not math.isfinite(prior):
                 return None
+            if self._prior_only:
+                return Estimate(prior, self._variance(rows))
         if self._window_net is not None:
             x = input_matrix(columns, self.meta.features, self._vehicle)
             y = self._window_net((x - self._mean) / self._std)
@@ -365,42 +322,3 @@ class PsoLstmBackend:
         x = input_matrix(columns, self.meta.features, self._vehicle)[0]
         self._rows_pushed = min(self._rows_pushed + 1, self.window_steps)
         return self._stream.push((x - self._mean) / self._std)
-
-
-def _vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDescription | None:
-    """The car a model reads: the vehicle_file, else the model's own; None if not read."""
-    if not meta.needs_vehicle:
-        return None
-    try:
-        if vehicle_file:
-            return VehicleDescription.load(Path(vehicle_file).expanduser())
-        if meta.vehicle is not None:
-            return VehicleDescription.from_mapping(meta.vehicle, f"{label}: vehicle")
-    except VehicleDescriptionError as err:
-        raise BackendError(f"pso_lstm.vehicle_file: {err}") from None
-    msg = (
-        f"pso_lstm.model_file {label} reads the car's nominal parameters "
-        f"({', '.join(meta.features)}); set pso_lstm.vehicle_file:=/path/to/car.yaml"
-    )
-    raise BackendError(msg)
-
-
-def _observer_for(meta: ModelMetadata, params_file: str, label: str, window_steps: int) -> Any:
-    """The ``ukf`` back-end a model reads (its stored settings, the car's params file);
-    None for a model that reads no observer."""
-    if not meta.needs_observer:
-        return None
-    if not params_file:
-        msg = (
-            f"pso_lstm.model_file {label} is anchored on the UKF observer; set "
-            "pso_lstm.observer_params_file:=/path/to/car.ukf.yaml (written by `python -m "
-            "sideslip_sim.ukf_params VEHICLE`)"
-        )
-        raise BackendError(msg)
-    from .ukf import UkfBackend
-
-    assert meta.observer is not None  # ModelMetadata checks it
-    try:
-        return UkfBackend({**meta.observer, "params_file": params_file}, window_steps)
-    except BackendError as err:
-        raise BackendError(f"pso_lstm.observer_params_file: {err}") from None

@@ -70,6 +70,7 @@ class SingleTrackBackend:
     name = "single_track"
     sample_period_s = None  # any rate: works on the stamps
     channels = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
+    caveats: tuple[str, ...] = ()
     parameters = (
         ParameterSpec(
             "params_file",
