@@ -1,0 +1,139 @@
+"""Which per-sample terms make the 95 % interval hold per car and road (validation only).
+
+The shipped default's σ model (``sideslip_msgs_py/uncertainty.py``) reads speed, lateral
+acceleration and sideslip rate at the newest sample. This script asks whether other
+terms a node could compute would make the interval hold in every car × μ cell, using the
+validation fleet only (no held-out car): the model's errors on every validation run,
+then for each candidate term set a 2-fold split by run: on one half, coefficients by
+Gaussian likelihood on half its runs and the conformal scale on the rest (as
+``sideslip-calibrate``), scored on the other half. Printed per term set: pooled
+coverage, coverage per μ third, the share of cars and of car × μ cells (≥ 2000
+samples) whose coverage lies in 93-97 %, and the held-back negative log-likelihood.
+
+    python training/scripts/interval_terms.py --model fleet_lstm_paper --data data/fleet-val
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import minimize
+
+from sideslip_training.dataset import load_runs
+from sideslip_training.evaluate import predict_run
+from sideslip_training.export import load_model
+from sideslip_training.init_model import resolve
+
+Z = 1.959963984540054
+SETS = {
+    "shipped (1, 1/v², a_y², β̇²)": ["1", "1/v2", "ay2", "bdot2"],
+    "+ window mean of β̇²": ["1", "1/v2", "ay2", "bdot2", "bdot2w"],
+    "window means only": ["1", "1/v2", "ay2w", "bdot2w"],
+    "+ β̂²": ["1", "1/v2", "ay2", "bdot2", "est2"],
+    "window means + β̂²": ["1", "1/v2", "ay2w", "bdot2w", "est2"],
+    "window means + β̂² + |a_y|": ["1", "1/v2", "ay2w", "bdot2w", "est2", "absay"],
+    "1, 1/v², β̂²": ["1", "1/v2", "est2"],
+}
+MU_THIRDS = ((0.0, 0.5), (0.5, 0.8), (0.8, 1.01))
+
+
+def samples(model: str, data: str) -> dict[str, np.ndarray]:
+    """Per sample with a full window: error [rad], candidate term inputs, run, car, μ."""
+    net, meta = load_model(resolve(model))
+    runs, _ = load_runs([data], step_s=meta.dt_s)
+    index = {r["bag"]: r for r in json.loads((Path(data) / "index.json").read_text())["runs"]}
+    w = meta.window_steps
+    cars: dict[str, int] = {}
+    parts: list[dict[str, np.ndarray]] = []
+    for i, run in enumerate(runs):
+        est = predict_run(net, meta, run)
+        s = run.samples
+        v = np.maximum(s.x_v_mps, 1.0)
+        bdot = s.y_a_mps2 / v - s.yaw_rate_radps
+
+        def window_mean(x: np.ndarray) -> np.ndarray:
+            c = np.concatenate([[0.0], np.cumsum(x)])
+            return (c[w:] - c[:-w]) / w
+
+        entry = index[Path(str(run.bag)).name]
+        car = cars.setdefault(entry["vehicle"], len(cars))
+        d = {
+            "err": est - s.beta_rad()[w - 1 :],
+            "1": np.ones(est.size),
+            "1/v2": 1.0 / v[w - 1 :] ** 2,
+            "ay2": s.y_a_mps2[w - 1 :] ** 2,
+            "bdot2": bdot[w - 1 :] ** 2,
+            "bdot2w": window_mean(bdot**2),
+            "ay2w": window_mean(s.y_a_mps2**2),
+            "est2": est**2,
+            "absay": np.abs(s.y_a_mps2[w - 1 :]),
+            "run": np.full(est.size, i),
+            "car": np.full(est.size, car),
+            "mu": np.full(est.size, float(entry["mu"])),
+        }
+        ok = np.isfinite(d["err"])
+        parts.append({k: x[ok] for k, x in d.items()})
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def fit(t: np.ndarray, e2: np.ndarray) -> np.ndarray:
+    start = np.log(np.mean(e2) / (t.shape[1] * np.maximum(t.mean(axis=0), 1e-12)))
+
+    def nll(log_c: np.ndarray) -> float:
+        var = t @ np.exp(log_c)
+        return float(0.5 * np.mean(np.log(var) + e2 / var))
+
+    result = minimize(nll, start, method="Nelder-Mead", options={"maxiter": 8000, "fatol": 1e-12})
+    return np.exp(result.x)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", default="fleet_lstm_paper")
+    parser.add_argument("--data", default="data/fleet-val", help="validation bags (index.json)")
+    args = parser.parse_args(argv)
+    d = samples(args.model, args.data)
+    runs = d["run"]
+    order = np.random.default_rng(0).permutation(np.unique(runs))
+    folds = (order[::2], order[1::2])
+    print(f"{runs.size} samples, {np.unique(runs).size} runs, {np.unique(d['car']).size} cars")
+    for name, keys in SETS.items():
+        t = np.stack([d[k] for k in keys], axis=1)
+        inside = np.zeros(runs.size, bool)
+        for k in range(2):
+            held = ~np.isin(runs, folds[k])
+            fit_rows, scale_rows = np.isin(runs, folds[k][::2]), np.isin(runs, folds[k][1::2])
+            sigma = np.sqrt(t @ fit(t[fit_rows], d["err"][fit_rows] ** 2))
+            ratio = np.sort(np.abs(d["err"][scale_rows]) / sigma[scale_rows])
+            scale = ratio[min(ratio.size - 1, math.ceil((ratio.size + 1) * 0.95) - 1)] / Z
+            inside[held] = np.abs(d["err"][held]) <= Z * scale * sigma[held]
+        thirds = [inside[(d["mu"] >= lo) & (d["mu"] < hi)].mean() for lo, hi in MU_THIRDS]
+        per_car = np.array([inside[d["car"] == c].mean() for c in np.unique(d["car"])])
+        cells = np.array(
+            [
+                inside[m].mean()
+                for c in np.unique(d["car"])
+                for lo, hi in MU_THIRDS
+                if (m := (d["car"] == c) & (d["mu"] >= lo) & (d["mu"] < hi)).sum() >= 2000
+            ]
+        )
+
+        def share(x: np.ndarray) -> float:
+            return float(np.mean((x >= 0.93) & (x <= 0.97)))
+
+        print(
+            f"{name:30s} pooled {inside.mean():.3f}; μ thirds "
+            + " ".join(f"{x:.3f}" for x in thirds)
+            + f"; cars in 93-97 % {share(per_car):.2f} (min {per_car.min():.3f}); "
+            f"car × μ cells in 93-97 % {share(cells):.2f} of {cells.size}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
