@@ -12,6 +12,12 @@ never shipped). For each amount, the first runs whose durations add up to it:
   --features paper_kinematic --prior kinematic_window --profile quick``;
 * **zero-shot**: ``fleet_lstm_paper`` as shipped.
 
+``--base measurable`` does the same with ``fleet_ukf_measurable`` (no Y_v; a residual
+on the UKF, which runs with the car's parameters from its bags) and its recipe (64
+units, ``measurable_observer_signals``, ``--prior ukf``). ``--train-args`` are added to
+both trainings (e.g. ``--stride 10 --mirror no`` for a quicker comparison than the
+small-data defaults).
+
 Both trainings take their validation split from the same runs (``--split auto``); all
 three are scored once on the car's 18 held-out benchmark runs. Results (pooled MAE
 [deg]) in ``OUT/CAR/curve.json`` and ``OUT/CAR/curve.md``.
@@ -36,6 +42,18 @@ from sideslip_training.fit import SHIPPED_PAPER
 from sideslip_training.init_model import resolve
 
 MINUTES = (1.0, 2.0, 5.0, 10.0, 20.0)
+BASES = {
+    "paper": (
+        SHIPPED_PAPER,
+        ["--model", "lstm", "--hidden-units", "32", "--features", "paper_kinematic",
+         "--prior", "kinematic_window"],
+    ),
+    "measurable": (
+        "fleet_ukf_measurable",
+        ["--model", "lstm", "--hidden-units", "64", "--features", "measurable_observer_signals",
+         "--prior", "ukf"],
+    ),
+}  # fmt: skip
 
 
 def car_runs(name: str, minutes: float, seed: int) -> list[VehicleRun]:
@@ -75,8 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("data/held-out-curve"))
     p.add_argument("--minutes", type=float, nargs="+", default=list(MINUTES))
     p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--base", choices=sorted(BASES), default="paper", help="which shipped model")
+    p.add_argument("--train-args", default="", help="more sideslip-train options for both")
     args = p.parse_args(argv)
-    work = args.out / args.car
+    shipped, scratch_model = BASES[args.base]
+    work = args.out / args.car if args.base == "paper" else args.out / f"{args.car}-{args.base}"
     data = work / "data"
     runs = car_runs(args.car, max(args.minutes), args.seed)
     runs = runs[: len(first_minutes(runs, max(args.minutes)))]
@@ -89,14 +110,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.car}: expected 18 held-out runs under {args.held_out}, got {len(bags)}")
         return 2
     common = ["--profile", "quick", "--device", "cpu", "--seed", str(args.seed), "--quiet"]
-    scratch_model = ["--model", "lstm", "--hidden-units", "32", "--features", "paper_kinematic",
-                     "--prior", "kinematic_window"]  # fmt: skip
+    common += args.train_args.split()
     curve = {}
     for minutes in args.minutes:
         names = first_minutes(runs, minutes)
         subset = [str(data / n) for n in names]
         models = {}
-        for kind, extra in (("finetuned", ["--init", SHIPPED_PAPER]), ("scratch", scratch_model)):
+        for kind, extra in (("finetuned", ["--init", shipped]), ("scratch", scratch_model)):
             out = work / f"{kind}_{minutes:g}min.safetensors"
             if not out.exists():
                 code = train_main(
@@ -107,20 +127,20 @@ def main(argv: list[str] | None = None) -> int:
             models[kind] = out
         report = work / f"report_{minutes:g}min"
         code = evaluate_main(["--model", str(models["finetuned"]), str(models["scratch"]),
-                              str(resolve(SHIPPED_PAPER)), "--data", *bags, "--out", str(report),
+                              str(resolve(shipped)), "--data", *bags, "--out", str(report),
                               "--force"])  # fmt: skip
         if code:
             return code
         mae = pooled_mae(report)
         by_stem = {
             stem: next(v for k, v in mae.items() if k.endswith(f"({stem})"))
-            for stem in (models["finetuned"].stem, models["scratch"].stem, SHIPPED_PAPER)
+            for stem in (models["finetuned"].stem, models["scratch"].stem, shipped)
         }
         curve[f"{minutes:g}"] = {
             "runs": len(names),
             "finetuned": by_stem[models["finetuned"].stem],
             "scratch": by_stem[models["scratch"].stem],
-            "zero_shot": by_stem[SHIPPED_PAPER],
+            "zero_shot": by_stem[shipped],
         }
         print(f"{args.car} {minutes:g} min: {curve[f'{minutes:g}']}", file=sys.stderr)
     (work / "curve.json").write_text(json.dumps(curve, indent=2) + "\n")
