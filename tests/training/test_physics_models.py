@@ -265,3 +265,27 @@ def test_offline_scoring_answers_as_the_node_on_a_car_outside_the_training_cars(
     np.testing.assert_allclose(_feed(est, run.samples), offline, rtol=0, atol=1e-12)
     network = predict_run(net, meta, run, outside_fleet="network")
     assert np.nanmax(np.abs(network - offline)) > 0
+
+
+def test_a_ukf_model_of_a_recording_without_a_car_is_tested_with_the_given_car(
+    sim_bag_dir: Path, tmp_path: Path, make_arrays, write_arrays
+):
+    recording = tmp_path / "recording"
+    for k in range(2):  # as a real logger writes them: no vehicle record in the bags
+        write_arrays(f"drive{k}", make_arrays(1500, seed=k), recording)
+    runs, _ = load_runs([sim_bag_dir])
+    record = runs[0].run_metadata["vehicle"]
+    params, car = tmp_path / "car.ukf.yaml", tmp_path / "car.yaml"
+    params.write_text(yaml.safe_dump(observer.params_of_vehicle(record)))
+    car.write_text(yaml.safe_dump(VehicleDescription.from_mapping(record).to_dict()))
+    model = tmp_path / "rec.safetensors"
+    args = ["--data", str(recording), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", "measurable_observer_signals", "--prior", "ukf"]
+    args += ["--split", "time", "--test-fraction", "0.3"]
+    args += ["--observer-params", str(params), "--vehicle", str(car)]
+    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    metrics = json.loads((tmp_path / "rec.run" / "metrics.json").read_text())
+    ours = next(v for k, v in metrics["test"].items() if k.startswith("LSTM"))
+    assert ours["samples"] > 0 and np.isfinite(ours["mae_deg"])
+    _, meta = read_artifact(model)
+    assert meta.envelope is not None and meta.envelope["cars"] == 1  # the given car

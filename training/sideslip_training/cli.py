@@ -268,7 +268,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         return _error(stop, stop.exit_code)
     _warn_if_still_improving(result, metrics)
     if plan.data.test_runs:
-        metrics["test"] = pooled_test_metrics(args.out, plan.data.test_runs, log)
+        metrics["test"] = pooled_test_metrics(args.out, plan.data.test_runs, log, plan.spec)
     total = time.perf_counter() - started
     summary = {**metrics, "wall_s": total, "out": str(args.out), "run_dir": str(plan.run_dir)}
     (plan.run_dir / "metrics.json").write_text(json.dumps(summary, indent=2) + "\n")

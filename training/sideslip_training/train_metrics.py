@@ -10,6 +10,7 @@ import numpy as np
 
 from .dataset import Run
 from .export import load_model
+from .inputs import InputSpec
 from .normalize import Normalizer
 from .trainer import TrainResult
 from .windows import WindowIndex
@@ -35,10 +36,15 @@ def val_metrics(result: TrainResult, val: WindowIndex, normalizer: Normalizer) -
 
 
 def pooled_test_metrics(
-    model_path: Path, runs: Sequence[Run], log: Callable[[str], None]
+    model_path: Path,
+    runs: Sequence[Run],
+    log: Callable[[str], None],
+    spec: InputSpec | None = None,
 ) -> dict[str, dict[str, float]]:
     """The exported model and the baselines on the test runs, pooled over their samples:
-    per estimator its MAE and RMSE [deg], R² and sample count."""
+    per estimator its MAE and RMSE [deg], R² and sample count. ``spec``: the training's
+    inputs, whose car and ``ukf`` params file serve test runs whose bags record no car
+    (a real recording), as they served its training runs."""
     from .evaluate import evaluate_runs, model_label, pooled
 
     net, meta = load_model(model_path)
@@ -47,6 +53,8 @@ def pooled_test_metrics(
         [(model_label(meta), net, meta)],
         window_steps=meta.window_steps,
         dt_s=meta.dt_s,
+        vehicle=spec.vehicle if spec is not None else None,
+        observer_params_file=spec.observer_params_file if spec is not None else None,
     )
     out = {
         name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}
