@@ -19,6 +19,13 @@ moved by up to ±40 % between seeds, so the comparison is of the means over seed
 
     python training/scripts/recording_split.py --out data/recording-split
 
+``--init MODEL`` adds a third method on the same recordings, one training per seed:
+fine-tuning a shipped or fitted model (``sideslip-train --init MODEL --split time
+--test-fraction 0.3``, otherwise the defaults). A model that reads the car or the UKF
+(``fleet_ukf_measurable``) gets the car's nominal parameters as a user would give them
+(``--vehicle``, ``--observer-params``; here the car's true values, since the recordings,
+like a real logger's, carry none). Written to ``results-init-MODEL.json``.
+
 ``--offsets`` runs the comparison on copies of the recordings with constant sensor
 offsets, as a real car's sensors have them (per car: lateral acceleration ±0.08 m/s²,
 yaw rate ±0.15 °/s, steering ±1.5 mm, signs drawn with seed 5), in OUT/recordings-offsets.
@@ -189,18 +196,70 @@ def defaults(folder: Path, out: Path, seed: int) -> dict[str, Any]:
     }
 
 
+def car_files(car_name: str, cars: int, out: Path) -> tuple[Path, Path]:
+    """The car's description and ``ukf`` params files (its true nominal values)."""
+    import yaml
+
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_training.physics_params import nominal_parameters
+
+    fleet = sample_fleet(cars, SEED, prefix="rec", exclude_digests=held_out_digests()).vehicles
+    car = next(c for c in fleet if c.name == car_name)
+    record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
+    folder = out / "cars"
+    folder.mkdir(parents=True, exist_ok=True)
+    description, params = folder / f"{car_name}.yaml", folder / f"{car_name}.ukf.yaml"
+    description.write_text(yaml.safe_dump(VehicleDescription.from_mapping(record).to_dict()))
+    params.write_text(yaml.safe_dump(nominal_parameters("ukf", record)))
+    return description, params
+
+
+def fine_tuned(
+    folder: Path, out: Path, seed: int, init: str, files: tuple[Path, Path]
+) -> dict[str, Any]:
+    """``sideslip-train --init`` on ``folder`` split in time: its test figures."""
+    model = out / "models" / f"{folder.name}_init_{Path(init).stem}_s{seed}.safetensors"
+    t0 = time.perf_counter()
+    args = ["--data", str(folder), "--split", "time", "--test-fraction", "0.3", "--init", init]
+    args += ["--vehicle", str(files[0]), "--observer-params", str(files[1]), "--seed", str(seed)]
+    code = train_main([*args, "--out", str(model), "--force", "--quiet", "--device", "cpu"])
+    if code != 0:
+        raise SystemExit(code)
+    test = json.loads(model.with_suffix(".run").joinpath("metrics.json").read_text())["test"]
+    ours = next(v for k, v in test.items() if k.startswith("LSTM"))
+    return {
+        "mae_deg": ours["mae_deg"],
+        "rmse_deg": ours["rmse_deg"],
+        "samples": ours["samples"],
+        "seconds": time.perf_counter() - t0,
+    }
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("data/recording-split"))
     p.add_argument("--cars", type=int, default=3)
     p.add_argument("--seeds", type=int, default=3, help="trainings per car and method")
     p.add_argument("--offsets", action="store_true", help="on copies with sensor offsets")
+    p.add_argument("--init", help="also fine-tune this model (shipped name or file)")
     args = p.parse_args()
     torch.set_num_threads(1)
     results: dict[str, Any] = {}
     folders = make_recordings(args.out, args.cars)
     if args.offsets:
         folders = with_offsets(folders, args.out)
+    if args.init:
+        for folder in folders:
+            files = car_files(folder.name, args.cars, args.out)
+            tuned = [fine_tuned(folder, args.out, s, args.init, files) for s in range(args.seeds)]
+            results[folder.name] = {
+                "fine_tuned": tuned,
+                "fine_tuned_mean_rmse_deg": float(np.mean([r["rmse_deg"] for r in tuned])),
+            }
+            print(folder.name, json.dumps(results[folder.name]), file=sys.stderr)
+        name = f"results-init-{Path(args.init).stem}.json"
+        (args.out / name).write_text(json.dumps(results, indent=2) + "\n")
+        return 0
     for folder in folders:
         ours = [defaults(folder, args.out, seed) for seed in range(args.seeds)]
         plain = []
