@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from sideslip_msgs_py.artifact import ModelMetadata
 from sideslip_msgs_py.fleet_envelope import (
@@ -24,6 +24,9 @@ from sideslip_msgs_py.fleet_envelope import (
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from .base import BackendError
+
+if TYPE_CHECKING:
+    from .ukf import UkfBackend
 
 
 def vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDescription | None:
@@ -44,7 +47,9 @@ def vehicle_for(meta: ModelMetadata, vehicle_file: str, label: str) -> VehicleDe
     raise BackendError(msg)
 
 
-def observer_for(meta: ModelMetadata, params_file: str, label: str, window_steps: int) -> Any:
+def observer_for(
+    meta: ModelMetadata, params_file: str, label: str, window_steps: int
+) -> UkfBackend | None:
     """The ``ukf`` back-end a model reads (its stored settings, the car's params file);
     None for a model that reads no observer."""
     if not meta.needs_observer:
@@ -56,7 +61,7 @@ def observer_for(meta: ModelMetadata, params_file: str, label: str, window_steps
             "sideslip_sim.ukf_params VEHICLE`)"
         )
         raise BackendError(msg)
-    from .ukf import UkfBackend
+    from .ukf import UkfBackend  # filterpy is imported only for a model that needs it
 
     assert meta.observer is not None  # ModelMetadata checks it
     try:
@@ -66,7 +71,7 @@ def observer_for(meta: ModelMetadata, params_file: str, label: str, window_steps
 
 
 def fleet_check(
-    meta: ModelMetadata, observer: Any, mode: str, label: str
+    meta: ModelMetadata, observer: UkfBackend | None, mode: str, label: str
 ) -> tuple[tuple[str, ...], bool]:
     """(caveats for /sideslip/status, publish the UKF's estimate instead of the model's).
 
