@@ -98,7 +98,9 @@ def test_sim_publishes_one_stamp_per_step_at_400_hz_and_clock(spawn, probe):
         *sim_args("-p", "publish_clock:=true", "-p", "wait_for_subscribers:=1"),
     )
     assert sim.proc.wait(60) == 0, sim.output()
-    wait_for(lambda: len(imu) > 1500, 5, "most IMU messages")
+    # 1600 steps; the in-process probe takes six 400-Hz topics and, on a starved CPU,
+    # loses some of the IMU's (history depth): the stamps are what this test checks.
+    wait_for(lambda: len(imu) > 1200, 10, "most IMU messages")
     stamps = np.array([stamp_ns(r.msg) for r in imu])
     assert np.all(np.diff(stamps) > 0)
     assert np.median(np.diff(stamps)) == 2_500_000
