@@ -35,6 +35,21 @@ def load_vehicle_dict(name: str) -> dict:
     return {k: v for k, v in dataclasses.asdict(load_vehicle(name)).items() if k != "source_path"}
 
 
+def car_files(record: dict, folder: Path) -> tuple[Path, Path]:
+    """A recorded car's description and ``ukf`` params files, as a user writes them."""
+    car, params = folder / "car.yaml", folder / "car.ukf.yaml"
+    car.write_text(yaml.safe_dump(VehicleDescription.from_mapping(record).to_dict()))
+    params.write_text(yaml.safe_dump(observer.params_of_vehicle(record)))
+    return car, params
+
+
+def train_ukf_residual(data: Path, out: Path, features: str, *extra: str) -> None:
+    """A tiny residual on the UKF (8 units, 2 epochs) trained on ``data``."""
+    args = ["--data", str(data), "--model", "lstm", "--hidden-units", "8"]
+    args += ["--features", features, "--prior", "ukf", *extra]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+
+
 @pytest.mark.parametrize(
     ("features", "prior"),
     [
@@ -183,19 +198,13 @@ def test_a_ukf_residual_publishes_the_ukf_on_a_car_outside_its_training_cars(
     sim_bag_dir: Path, tmp_path: Path
 ):
     model = tmp_path / "obs.safetensors"
-    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
-    args += ["--features", "measurable_observer_signals", "--prior", "ukf"]
-    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    train_ukf_residual(sim_bag_dir, model, "measurable_observer_signals")
     _, meta = read_artifact(model)
     runs, _ = load_runs([sim_bag_dir])
-    own = observer.params_of_vehicle(runs[0].run_metadata["vehicle"])
+    car, own_file = car_files(runs[0].run_metadata["vehicle"], tmp_path)
+    own = yaml.safe_load(own_file.read_text())
     assert meta.envelope is not None and meta.envelope["cars"] == 1  # one simulated car
     assert FleetEnvelope.from_dict(meta.envelope).outside(own) == []
-
-    car = tmp_path / "car.yaml"
-    car.write_text(
-        yaml.safe_dump(VehicleDescription.from_mapping(runs[0].run_metadata["vehicle"]).to_dict())
-    )
     base = {"model_file": str(model), "vehicle_file": str(car)}
 
     def estimates(values: dict[str, object]) -> tuple[list[float], tuple[str, ...]]:
@@ -203,8 +212,6 @@ def test_a_ukf_residual_publishes_the_ukf_on_a_car_outside_its_training_cars(
         est = Estimator(backend, EstimatorParams(window_steps=100, max_gap_s=1.0))
         return _feed(est, runs[0].samples), backend.caveats
 
-    own_file = tmp_path / "own.ukf.yaml"
-    own_file.write_text(yaml.safe_dump(own))
     _, caveats = estimates({"observer_params_file": str(own_file)})
     assert caveats == ()
     # compact_rwd is not the training car: its quantities lie outside a one-car envelope.
@@ -239,9 +246,7 @@ def test_offline_scoring_answers_as_the_node_on_a_car_outside_the_training_cars(
     sim_bag_dir: Path, tmp_path: Path
 ):
     trained = tmp_path / "obs.safetensors"
-    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "8"]
-    args += ["--features", "measurable_observer", "--prior", "ukf"]
-    assert train_main([*args, "--out", str(trained), *TINY]) == 0
+    train_ukf_residual(sim_bag_dir, trained, "measurable_observer")
     tensors, meta = read_artifact(trained)
     # The same network, told it was trained on compact_rwd only: the bags' car is outside.
     other = FleetEnvelope.of_cars([observer.params_of_vehicle(load_vehicle_dict("compact_rwd"))])
@@ -252,12 +257,7 @@ def test_offline_scoring_answers_as_the_node_on_a_car_outside_the_training_cars(
     assert outside_training_cars(read_artifact(model)[1], run)
     net, meta = load_model(model)
     offline = predict_run(net, meta, run)
-    own = tmp_path / "own.ukf.yaml"
-    own.write_text(yaml.safe_dump(observer.params_of_vehicle(run.run_metadata["vehicle"])))
-    car = tmp_path / "car.yaml"
-    car.write_text(
-        yaml.safe_dump(VehicleDescription.from_mapping(run.run_metadata["vehicle"]).to_dict())
-    )
+    car, own = car_files(run.run_metadata["vehicle"], tmp_path)
     values = {"model_file": str(model), "observer_params_file": str(own), "vehicle_file": str(car)}
     backend = create_backend("pso_lstm", values, meta.window_steps)
     assert "publishing the UKF's estimate" in backend.caveats[0]
@@ -274,16 +274,11 @@ def test_a_ukf_model_of_a_recording_without_a_car_is_tested_with_the_given_car(
     for k in range(2):  # as a real logger writes them: no vehicle record in the bags
         write_arrays(f"drive{k}", make_arrays(1500, seed=k), recording)
     runs, _ = load_runs([sim_bag_dir])
-    record = runs[0].run_metadata["vehicle"]
-    params, car = tmp_path / "car.ukf.yaml", tmp_path / "car.yaml"
-    params.write_text(yaml.safe_dump(observer.params_of_vehicle(record)))
-    car.write_text(yaml.safe_dump(VehicleDescription.from_mapping(record).to_dict()))
+    car, params = car_files(runs[0].run_metadata["vehicle"], tmp_path)
     model = tmp_path / "rec.safetensors"
-    args = ["--data", str(recording), "--model", "lstm", "--hidden-units", "8"]
-    args += ["--features", "measurable_observer_signals", "--prior", "ukf"]
-    args += ["--split", "time", "--test-fraction", "0.3"]
-    args += ["--observer-params", str(params), "--vehicle", str(car)]
-    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    options = ["--split", "time", "--test-fraction", "0.3"]
+    options += ["--observer-params", str(params), "--vehicle", str(car)]
+    train_ukf_residual(recording, model, "measurable_observer_signals", *options)
     metrics = json.loads((tmp_path / "rec.run" / "metrics.json").read_text())
     ours = next(v for k, v in metrics["test"].items() if k.startswith("LSTM"))
     assert ours["samples"] > 0 and np.isfinite(ours["mae_deg"])

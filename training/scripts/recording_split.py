@@ -176,13 +176,13 @@ def with_offsets(folders: list[Path], out: Path) -> list[Path]:
     return copies
 
 
-def defaults(folder: Path, out: Path, seed: int) -> dict[str, Any]:
-    """sideslip-train's defaults on ``folder``: its test figures and the baselines'."""
-    model = out / "models" / f"{folder.name}_s{seed}.safetensors"
+def train_and_test(folder: Path, model: Path, seed: int, options: list[str]) -> dict[str, Any]:
+    """``sideslip-train`` on ``folder`` split 70/30 in time with ``options``: the model's
+    and the smoothed kinematic baseline's test figures, and the wall time [s]."""
     t0 = time.perf_counter()
-    args = ["--data", str(folder), "--split", "time", "--test-fraction", "0.3"]
-    args += ["--features", "measurable", "--model", "lstm", "--seed", str(seed)]
-    code = train_main([*args, "--out", str(model), "--force", "--quiet", "--device", "cpu"])
+    args = ["--data", str(folder), "--split", "time", "--test-fraction", "0.3", *options]
+    args += ["--seed", str(seed), "--out", str(model), "--force", "--quiet", "--device", "cpu"]
+    code = train_main(args)
     if code != 0:
         raise SystemExit(code)
     test = json.loads(model.with_suffix(".run").joinpath("metrics.json").read_text())["test"]
@@ -194,6 +194,12 @@ def defaults(folder: Path, out: Path, seed: int) -> dict[str, Any]:
         "seconds": time.perf_counter() - t0,
         "kinematic_20": {k: test["Kinematic (20-step mean)"][k] for k in ("mae_deg", "rmse_deg")},
     }
+
+
+def defaults(folder: Path, out: Path, seed: int) -> dict[str, Any]:
+    """sideslip-train's defaults on ``folder``: its test figures and the baselines'."""
+    model = out / "models" / f"{folder.name}_s{seed}.safetensors"
+    return train_and_test(folder, model, seed, ["--features", "measurable", "--model", "lstm"])
 
 
 def car_files(car_name: str, cars: int, out: Path) -> tuple[Path, Path]:
@@ -219,20 +225,8 @@ def fine_tuned(
 ) -> dict[str, Any]:
     """``sideslip-train --init`` on ``folder`` split in time: its test figures."""
     model = out / "models" / f"{folder.name}_init_{Path(init).stem}_s{seed}.safetensors"
-    t0 = time.perf_counter()
-    args = ["--data", str(folder), "--split", "time", "--test-fraction", "0.3", "--init", init]
-    args += ["--vehicle", str(files[0]), "--observer-params", str(files[1]), "--seed", str(seed)]
-    code = train_main([*args, "--out", str(model), "--force", "--quiet", "--device", "cpu"])
-    if code != 0:
-        raise SystemExit(code)
-    test = json.loads(model.with_suffix(".run").joinpath("metrics.json").read_text())["test"]
-    ours = next(v for k, v in test.items() if k.startswith("LSTM"))
-    return {
-        "mae_deg": ours["mae_deg"],
-        "rmse_deg": ours["rmse_deg"],
-        "samples": ours["samples"],
-        "seconds": time.perf_counter() - t0,
-    }
+    options = ["--init", init, "--vehicle", str(files[0]), "--observer-params", str(files[1])]
+    return train_and_test(folder, model, seed, options)
 
 
 def main() -> int:

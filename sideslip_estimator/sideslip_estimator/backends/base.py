@@ -47,7 +47,7 @@ class Backend(Protocol):
     """The window channels (``CHANNELS`` names) the back-end reads."""
     caveats: tuple[str, ...]
     """Standing limits of this configuration (e.g. a car outside the model's training
-    cars), reported as WARN in /sideslip/status; empty when there are none."""
+    cars), which the node's status reports as WARN; empty when there are none."""
 
     def reset(self) -> None: ...
 

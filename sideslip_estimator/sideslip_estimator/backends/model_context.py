@@ -73,7 +73,7 @@ def observer_for(
 def fleet_check(
     meta: ModelMetadata, observer: UkfBackend | None, mode: str, label: str
 ) -> tuple[tuple[str, ...], bool]:
-    """(caveats for /sideslip/status, publish the UKF's estimate instead of the model's).
+    """(caveats for the node's status, publish the UKF's estimate instead of the model's).
 
     A model with an envelope that reads the UKF observer is checked against the car of
     ``observer`` (its params file). Outside the envelope, ``mode`` decides: ``prior``

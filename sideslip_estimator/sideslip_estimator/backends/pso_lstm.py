@@ -141,8 +141,8 @@ class PsoLstmBackend:
             "do when the car (observer_params_file) lies outside it. prior: publish the "
             "UKF's own estimate (the network's correction was learnt on other cars); "
             "network: publish the model's estimate; refuse: do not start; auto: prior for "
-            "a residual on the UKF, network otherwise. Both publishing choices WARN in "
-            "/sideslip/status.",
+            "a residual on the UKF, network otherwise. Both publishing choices make the "
+            "node's status WARN.",
         ),
         ParameterSpec(
             "engine",
