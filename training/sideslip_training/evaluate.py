@@ -150,9 +150,15 @@ def predict_run(
     spec = InputSpec(
         meta.features, meta.prior, meta.dt_s, fallback, meta.observer, observer_params_file
     )
+    w = meta.window_steps
+    if outside_training_cars(meta, run, observer_params_file) and publishes_prior(
+        outside_fleet, meta.prior
+    ):
+        # As the node: the prior alone, and the network is not run.
+        prior_only = spec.prior_rad(run, w)[w - 1 :]
+        return np.where(np.isfinite(prior_only), prior_only, np.nan)
     # The contract's z-score (float64, rounded once to float32), as the estimator does.
     x = zscore(spec.inputs(run), meta.feature_mean, meta.feature_std)
-    w = meta.window_steps
     windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (N, F, w)
     out = np.empty(windows.shape[0])
     model.eval()
@@ -161,10 +167,6 @@ def predict_run(
             chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
     prior = spec.prior_rad(run, w)[w - 1 :]
-    if outside_training_cars(meta, run, observer_params_file) and publishes_prior(
-        outside_fleet, meta.prior
-    ):
-        return np.where(np.isfinite(prior), prior, np.nan)
     # A window with a non-finite input gives no estimate (as in training and the node).
     bad = np.concatenate([[0], np.cumsum(~np.isfinite(x).all(axis=1))])
     clean = bad[w:] - bad[:-w] == 0
