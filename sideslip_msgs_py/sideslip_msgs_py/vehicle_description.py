@@ -99,7 +99,9 @@ class VehicleDescription:
                     f"{where}: bad simulator parameters ({err})"
                 ) from None
         names = [f.name for f in fields(cls)]
-        unknown = sorted(set(data) - set(names) - {"name", "description"})
+        # The drive layout is part of a description (sideslip-fit and the described car
+        # read it) but no model input: accepted, so that one file serves every tool.
+        unknown = sorted(set(data) - set(names) - {"name", "description", "drive_layout"})
         missing = [n for n in names if n not in data]
         if unknown or missing:
             raise VehicleDescriptionError(

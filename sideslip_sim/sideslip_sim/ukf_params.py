@@ -133,6 +133,24 @@ def ukf_parameters(
     return out
 
 
+def _described(path: str) -> VehicleParams:
+    """The full car of a description file (:mod:`sideslip_sim.described_car`)."""
+    from pathlib import Path
+
+    import yaml
+
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_sim.described_car import described_vehicle
+
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping of parameters")
+    layout = data.pop("drive_layout", None)
+    name = str(data.get("name", Path(path).stem))
+    nominal = VehicleDescription.from_mapping(data, where=path)
+    return described_vehicle(name=name, layout=layout, **nominal.to_dict())
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the UKF observer parameters of a vehicle as YAML."""
     import argparse
@@ -149,14 +167,26 @@ def main(argv: list[str] | None = None) -> int:
         "mass, inertia and geometry, and per axle a Magic Formula (B, C, E, μ_peak) fitted "
         "to the tyre model's pure lateral force of the axle at its static load.",
     )
-    parser.add_argument("vehicle", help="shipped vehicle name or path to a vehicle YAML")
+    parser.add_argument(
+        "vehicle",
+        help="shipped vehicle name or path to a vehicle YAML; with --description, a short "
+        "description (mass_kg, wheelbase_m, cg_to_front_axle_m, cg_height_m, track_m, "
+        "stl_per_road_wheel_angle_m_per_rad, tire_rolling_radius_m; optionally "
+        "drive_layout and name)",
+    )
+    parser.add_argument(
+        "--description",
+        action="store_true",
+        help="VEHICLE is a short description: what is unknown (inertia, tyres, balance) "
+        "takes the fleet's typical values (sideslip_sim.described_car)",
+    )
     args = parser.parse_args(argv)
     try:
-        vehicle = load_vehicle(args.vehicle)
+        vehicle = _described(args.vehicle) if args.description else load_vehicle(args.vehicle)
         # Both axles carry the vehicle's tyre file as it is.
         tire = load_tire(str(vehicle.tire_path()))
         params = ukf_parameters(vehicle, *axle_tires(vehicle, tire))
-    except (VehicleFileError, OSError, ValueError) as err:
+    except (VehicleFileError, OSError, ValueError, yaml.YAMLError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(f"# ukf parameters of {vehicle.name} (python -m sideslip_sim.ukf_params {args.vehicle})")
