@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 
 from sideslip_msgs_py.artifact import read_artifact
+from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_sim.fleet import sample_fleet
+from sideslip_training import observer
 from sideslip_training.fit import Description, main
 
 SEDAN = {
@@ -76,4 +78,26 @@ def test_the_description_names_a_missing_key(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump({k: v for k, v in SEDAN.items() if k != "track_m"}))
     with pytest.raises(CliError, match="track_m"):
         Description.load(path)
-    assert np.isfinite(1.0)
+
+
+def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path: Path) -> None:
+    desc = tmp_path / "sedan.yaml"
+    desc.write_text(yaml.safe_dump(SEDAN))
+    out = tmp_path / "sedan.safetensors"
+    args = ["--vehicle", str(desc), "--out", str(out), "--cars", "1", "--test-runs", "1"]
+    args += ["--max-epochs", "1", "--features", "measurable", "--device", "cpu", "--quiet"]
+    assert main(args) == 0
+    meta = read_artifact(out)[1]
+    assert meta.provenance["init"] == "fleet_ukf_measurable.safetensors"
+    # The ukf file beside the model is the described car's, and the model knows that
+    # car as one of its training cars: a node given the file runs the network.
+    ukf = yaml.safe_load(out.with_suffix(".ukf.yaml").read_text())
+    assert ukf == observer.params_of_vehicle(_as_recorded(Description.load(desc).vehicle()))
+    assert not FleetEnvelope.from_dict(meta.envelope).outside(ukf, "described car")
+    card = out.with_suffix(".md").read_text()
+    assert f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}" in card
+    assert "| UKF |" in card and "(fleet_ukf_measurable)" in card
+
+
+def _as_recorded(car) -> dict:
+    return {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}

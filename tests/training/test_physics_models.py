@@ -284,3 +284,54 @@ def test_a_ukf_model_of_a_recording_without_a_car_is_tested_with_the_given_car(
     assert ours["samples"] > 0 and np.isfinite(ours["mae_deg"])
     _, meta = read_artifact(model)
     assert meta.envelope is not None and meta.envelope["cars"] == 1  # the given car
+
+
+def test_a_given_car_replaces_the_bags_own_car_in_training_and_scoring(
+    sim_bag_dir: Path, tmp_path: Path
+):
+    """--car given: the UKF and the car's inputs read the files a user gives the node,
+    also for bags that record their (true) car: sideslip-fit trains on described cars."""
+    runs, _ = load_runs([sim_bag_dir])
+    run = runs[0]
+    true_car = run.run_metadata["vehicle"]
+    other = load_vehicle_dict("compact_rwd")
+    car, params = car_files(other, tmp_path)
+    assert observer.run_params(run, str(params))[0] == observer.params_of_vehicle(true_car)
+    given = observer.run_params(run, str(params), car="given")[0]
+    assert given == observer.params_of_vehicle(other)
+    with pytest.raises(observer.DatasetError, match="the given car"):
+        observer.run_params(run, None, car="given")
+    # described: the bag's car as its description alone tells it (no file needed).
+    from sideslip_sim.described_car import described_vehicle
+
+    nominal = VehicleDescription.from_mapping(true_car).to_dict()
+    guess = described_vehicle(name="x", layout=true_car["drive_layout"], **nominal)
+    described = observer.run_params(run, None, car="described")[0]
+    expected = observer.params_of_vehicle(
+        {k: v for k, v in dataclasses.asdict(guess).items() if k != "source_path"}
+    )
+    assert {k: v for k, v in described.items() if k != "name"} == {
+        k: v for k, v in expected.items() if k != "name"
+    }
+    assert described["mf_b_rear"] != observer.params_of_vehicle(true_car)["mf_b_rear"]
+
+    plain, as_given = tmp_path / "plain.safetensors", tmp_path / "given.safetensors"
+    files = ["--vehicle", str(car), "--observer-params", str(params)]
+    train_ukf_residual(sim_bag_dir, plain, "measurable_observer", *files)
+    train_ukf_residual(sim_bag_dir, as_given, "measurable_observer", *files, "--car", "given")
+    # The training cars are the bags' car, or only the given one.
+    envelope = FleetEnvelope.from_dict(read_artifact(as_given)[1].envelope)
+    assert not envelope.outside(observer.params_of_vehicle(other), "given")
+    assert FleetEnvelope.from_dict(read_artifact(plain)[1].envelope).outside(
+        observer.params_of_vehicle(other), "given"
+    )
+    # Scored as the node runs it with those files: another answer than with the true car.
+    net, meta = load_model(as_given)
+    options = {"vehicle": VehicleDescription.load(car), "observer_params_file": str(params)}
+    own = predict_run(net, meta, run, **options)
+    with_given = predict_run(net, meta, run, **options, car="given")
+    assert np.nanmax(np.abs(with_given - own)) > 1e-4
+    # Without the files it asks for, --car given is refused before any training.
+    assert train_main(["--data", str(sim_bag_dir), "--model", "lstm", "--features",
+                       "measurable_observer", "--prior", "ukf", "--car", "given",
+                       "--out", str(tmp_path / "x.safetensors"), *TINY]) == 2  # fmt: skip

@@ -133,6 +133,7 @@ def predict_run(
     vehicle: VehicleDescription | None = None,
     observer_params_file: str | None = None,
     outside_fleet: str = "auto",
+    car: str = "recorded",
 ) -> FloatArray:
     """β̂ [rad] for every sample with a full window, i.e. samples[window-1:] (NaN where
     an input is not finite, e.g. the UKF observer gives no estimate below its speed).
@@ -143,15 +144,23 @@ def predict_run(
     run's bag records no car. ``outside_fleet``: as the estimator's parameter, for a car
     outside the model's training cars (:func:`outside_training_cars`): with ``prior``
     (``auto`` for a residual on the UKF) the prior alone is β̂, as the node publishes it.
+    ``car``: where the car's parameters come from for runs whose bags record one
+    (:data:`~sideslip_training.inputs.CAR_SOURCES`).
     """
     fallback = vehicle
     if fallback is None and meta.vehicle is not None:
         fallback = VehicleDescription.from_mapping(meta.vehicle)
     spec = InputSpec(
-        meta.features, meta.prior, meta.dt_s, fallback, meta.observer, observer_params_file
+        meta.features,
+        meta.prior,
+        meta.dt_s,
+        fallback,
+        meta.observer,
+        observer_params_file,
+        car=car,
     )
     w = meta.window_steps
-    if outside_training_cars(meta, run, observer_params_file) and publishes_prior(
+    if outside_training_cars(meta, run, observer_params_file, car) and publishes_prior(
         outside_fleet, meta.prior
     ):
         # As the node: the prior alone, and the network is not run.
@@ -174,7 +183,10 @@ def predict_run(
 
 
 def outside_training_cars(
-    meta: ModelMetadata, run: Run, observer_params_file: str | None = None
+    meta: ModelMetadata,
+    run: Run,
+    observer_params_file: str | None = None,
+    car: str = "recorded",
 ) -> list[str]:
     """What of the run's car lies outside the model's training cars (one line per
     quantity, :mod:`sideslip_msgs_py.fleet_envelope`); empty when inside or when the
@@ -183,7 +195,7 @@ def outside_training_cars(
         return []
     from .observer import run_params
 
-    params = run_params(run, observer_params_file)[0]
+    params = run_params(run, observer_params_file, car=car)[0]
     return FleetEnvelope.from_dict(meta.envelope).outside(params, run.name)
 
 
@@ -233,12 +245,13 @@ def evaluate_runs(
     dt_s: float = STEP_S,
     vehicle: VehicleDescription | None = None,
     observer_params_file: str | None = None,
+    car: str = "recorded",
     filters: Mapping[str, str] | None = None,
 ) -> list[Trace]:
     """Traces of every estimator on every run: baselines first (β = 0, kinematic raw and
     smoothed, then the physics ``filters``: back-end name → params file), then the models
     (``vehicle``, ``observer_params_file``: the car of runs whose bags record none, for
-    models that read it; see :func:`predict_run`)."""
+    models that read it; ``car``: where the cars come from; see :func:`predict_run`)."""
     traces = []
     for run in runs:
         ref = run.samples.beta_rad()[window_steps - 1 :]
@@ -268,6 +281,7 @@ def evaluate_runs(
                         run,
                         vehicle=vehicle,
                         observer_params_file=observer_params_file,
+                        car=car,
                     ),
                 )
             )

@@ -22,6 +22,7 @@ from .cli_errors import EXIT_BAD_INPUT, CliError
 from .config import DT_S, WINDOW_STEPS
 from .dataset import DatasetError, load_runs
 from .export import load_model
+from .inputs import CAR_SOURCES
 
 
 def _evaluate_parser() -> argparse.ArgumentParser:
@@ -61,6 +62,13 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         metavar="UKF.yaml",
         help="the car's ukf params file for bags that record none, for models that read "
         "the UKF observer",
+    )
+    p.add_argument(
+        "--car",
+        choices=list(CAR_SOURCES),
+        default="recorded",
+        help="where the models' car parameters (UKF observer, vehicle inputs) come from "
+        "for bags that record their car: " + "; ".join(f"{k}: {v}" for k, v in CAR_SOURCES.items()),
     )
     p.add_argument(
         "--single-track-params",
@@ -140,8 +148,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not runs:
             raise CliError(f"no run of {args.data} holds a full window of {window} samples")
         observer_file = str(args.observer_params) if args.observer_params else None
+        if args.car == "given" and not (args.vehicle or args.observer_params):
+            raise CliError("--car given needs --vehicle and/or --observer-params")
         for label, _, meta in models:
-            outside = {r.name: outside_training_cars(meta, r, observer_file) for r in runs}
+            outside = {
+                r.name: outside_training_cars(meta, r, observer_file, args.car) for r in runs
+            }
             if any(outside.values()):
                 lines = sorted({line for found in outside.values() for line in found})
                 print(
@@ -169,6 +181,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             smoothing_steps=args.smoothing,
             vehicle=VehicleDescription.load(args.vehicle) if args.vehicle else None,
             observer_params_file=observer_file,
+            car=args.car,
             filters=filters,
         )
     except (DatasetError, VehicleDescriptionError, FilterError) as err:

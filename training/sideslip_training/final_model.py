@@ -80,7 +80,7 @@ def model_metadata(
 
         # The cars of the training runs (a recording without a vehicle record: the
         # given params file's car); a fine-tuned model knows its init's cars as well.
-        env = training_envelope(plan.data.train_runs, spec.observer_params_file)
+        env = training_envelope(plan.data.train_runs, spec.observer_params_file, car=spec.car)
         if init is not None and init.meta.envelope is not None:
             env = env.union(FleetEnvelope.from_dict(init.meta.envelope))
         envelope = env.to_dict()

@@ -8,10 +8,16 @@ the fleet, μ 0.3–1.0 (:func:`sideslip_sim.fleet.centred_ranges`). One more ca
 same ranges is kept aside as "your car" for the test. Then:
 
 1. generate the fleet's runs (training) and the test car's runs (other manoeuvres);
-2. train: ``paper`` features fine-tune the shipped ``fleet_lstm_paper`` (``--init``),
-   ``measurable`` ones train an LSTM without Y_v from scratch;
-3. evaluate the fitted model beside the zero-shot fleet model (``paper``) and the
-   baselines on the test car's runs;
+2. train: ``paper`` features fine-tune the shipped ``fleet_lstm_paper`` (``--init``);
+   ``measurable`` ones (no Y_v) fine-tune ``fleet_ukf_measurable``, a residual on the
+   UKF. The node can only give that UKF the parameters the description implies (the
+   described car, :mod:`sideslip_sim.described_car`: the fleet's typical tyres, inertia
+   and balance for what is unknown), so the training runs the UKF with those too
+   (``--car given``), not with each simulated car's true parameters: the network learns
+   to correct the filter the node will run. That ``ukf`` params file is written next to
+   the model (``OUT`` with ``.ukf.yaml``);
+3. evaluate the fitted model beside the zero-shot fleet model and the baselines on the
+   test car's runs (``measurable``: all with the described car's files, the UKF too);
 4. write the model card (``OUT`` with ``.md``) next to the model.
 
 The work folder (default ``OUT`` + ``.fit``) keeps the data: a second call with the
@@ -39,6 +45,8 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDesc
 from .cli_errors import EXIT_BAD_INPUT, CliError
 
 SHIPPED_PAPER: Final = "fleet_lstm_paper"
+SHIPPED_MEASURABLE: Final = "fleet_ukf_measurable"
+SHIPPED: Final = {"paper": SHIPPED_PAPER, "measurable": SHIPPED_MEASURABLE}
 
 
 @dataclass(frozen=True)
@@ -104,6 +112,26 @@ class Description:
             layout=self.layout,
         )
 
+    def vehicle(self) -> Any:
+        """The full car this description stands for (:mod:`sideslip_sim.described_car`)."""
+        from sideslip_sim.described_car import described_vehicle
+        from sideslip_sim.fleet import FleetError
+
+        try:
+            return described_vehicle(name=self.name, layout=self.layout, **self.nominal.to_dict())
+        except FleetError as err:
+            raise CliError(str(err)) from None
+
+    def ukf_params_yaml(self) -> str:
+        """The described car's ``ukf`` params file (what the node's UKF is given)."""
+        from .physics_params import nominal_parameters, params_yaml
+
+        car = dataclasses.asdict(self.vehicle())
+        car.pop("source_path")
+        return params_yaml(
+            "ukf", self.name, nominal_parameters("ukf", car), "sideslip-fit from the description"
+        )
+
     def digest(self) -> str:
         text = json.dumps([self.nominal.to_dict(), self.layout], sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -159,11 +187,13 @@ def _parser() -> argparse.ArgumentParser:
         "--features",
         choices=["paper", "measurable"],
         default="paper",
-        help="paper (with Y_v): fine-tune the shipped fleet model; measurable (no Y_v): "
-        "an LSTM from scratch",
+        help=f"paper (with Y_v): fine-tune {SHIPPED_PAPER}; measurable (no Y_v): fine-tune "
+        f"{SHIPPED_MEASURABLE} with the UKF run on the described car (its ukf params file "
+        "is written next to OUT)",
     )
     p.add_argument("--cars", type=int, help="override the profile's number of cars")
     p.add_argument("--test-runs", type=int, help="override the profile's test runs")
+    p.add_argument("--max-epochs", type=int, help="override the profile's cap on epochs")
     p.add_argument("--work", type=Path, help="data and reports (default: OUT + .fit)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=2, help="simulation processes")
@@ -193,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise CliError(f"--out {args.out} exists; pass --force to replace it")
         desc = Description.load(args.vehicle)
         profile = FIT_PROFILES[args.profile]
-        for name in ("cars", "test_runs"):
+        for name in ("cars", "test_runs", "max_epochs"):
             value = getattr(args, name)
             if value is not None:
                 if value < 1:
@@ -210,6 +240,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             log, started, f"fleet around {desc.name}: {profile.cars} cars, one more for the test"
         )
         train_runs, test_runs = plan_runs(desc, profile, args.seed)
+        car_files: list[str] = []
+        filters: list[str] = []
+        if args.features == "measurable":
+            ukf_file = args.out.with_suffix(".ukf.yaml")
+            ukf_file.write_text(desc.ukf_params_yaml())
+            car_files = ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
+            car_files += ["--car", "given"]
+            filters = ["--ukf-params", str(ukf_file)]
     except CliError as err:
         print(f"sideslip-fit: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -232,22 +270,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     common += ["--mirror", "no"]
     if profile.max_epochs is not None:
         common += ["--max-epochs", str(profile.max_epochs)]
-    if args.features == "paper":
-        code = train_main([*common, "--init", SHIPPED_PAPER])
-    else:
-        code = train_main([*common, "--model", "lstm", "--features", "measurable"])
+    code = train_main([*common, "--init", SHIPPED[args.features], *car_files])
     if code != 0:
         return code
     _stage(log, started, "evaluating on the test car")
-    models = [str(args.out)]
-    if args.features == "paper":
-        from .init_model import resolve
+    from .init_model import resolve
 
-        models.append(str(resolve(SHIPPED_PAPER)))
+    models = [str(args.out), str(resolve(SHIPPED[args.features]))]
+    # measurable: the UKF beside them, and every model fed the described car's files.
     report = work / "report"
     code = evaluate_main(
         ["--model", *models, "--data", str(work / "test"), "--out", str(report), "--force",
-         "--title", f"{desc.name}: fitted model on the test car"]
+         "--title", f"{desc.name}: fitted model on the test car", *car_files, *filters]
     )  # fmt: skip
     if code != 0:
         return code
@@ -272,6 +306,15 @@ def _model_card(
         if r["mae"] is not None
     )
     nominal = "\n".join(f"- {k}: {v:g}" for k, v in desc.nominal.to_dict().items())
+    ukf = args.out.with_suffix(".ukf.yaml")
+    deploy = (
+        f"`-p pso_lstm.model_file:={args.out} -p pso_lstm.vehicle_file:={args.vehicle} "
+        f"-p pso_lstm.observer_params_file:={ukf}`. The UKF it corrects ran in training "
+        f"with `{ukf}` (the described car: the fleet's typical tyres, inertia and balance "
+        "for what the description does not say); give the node that file, not another."
+        if args.features == "measurable"
+        else f"`-p pso_lstm.model_file:={args.out}` (needs Y_v; nothing about the car)."
+    )
     return f"""# Model card: {args.out.name}
 
 Fitted by `sideslip-fit --vehicle {args.vehicle} --profile {args.profile} --features
@@ -289,6 +332,10 @@ per cent; inertia, tyres, suspension and understeer spread as in the fleet), fou
 each, road μ 0.3–1.0, paper sensor noise: `{work / "train"}`. Tested on
 {profile.test_runs} runs of one more car drawn from the same description, never trained
 on: `{work / "test"}`.
+
+## Deploy
+
+{deploy}
 
 ## Result on the test car (pooled over its runs, degrees)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 import numpy.typing as npt
@@ -28,13 +28,24 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
+CAR_SOURCES: Final = {
+    "recorded": "each bag's own car record (a simulation's true parameters), else the given files",
+    "given": "the given --vehicle / --observer-params for every bag, as the node is given "
+    "them (sideslip-fit's described car)",
+    "described": "each recorded car as its description alone tells it (the fleet's "
+    "typical tyres, inertia and balance for the rest): the UKF a user who has only the "
+    "description runs",
+}
+"""Where a run's car parameters (the UKF observer's, the ``vehicle.*`` inputs') come from."""
+
 
 @dataclass(frozen=True)
 class InputSpec:
     """Inputs, prior and sample period of a model; ``vehicle`` is the car of runs whose
     bags do not record one (a real recording); ``observer`` the UKF's parameter values
     for a model that reads it (None: the back-end's defaults), ``observer_params_file``
-    its ``ukf`` params file for runs whose bags record no car."""
+    its ``ukf`` params file for runs whose bags record no car; ``car`` where the car's
+    parameters come from for runs whose bags record one (:data:`CAR_SOURCES`)."""
 
     features: tuple[str, ...]
     prior: str = "none"
@@ -42,8 +53,11 @@ class InputSpec:
     vehicle: VehicleDescription | None = None
     observer: Mapping[str, Any] | None = None
     observer_params_file: str | None = None
+    car: str = "recorded"
 
     def __post_init__(self) -> None:
+        if self.car not in CAR_SOURCES:
+            raise DatasetError(f"car must be one of {', '.join(CAR_SOURCES)}, got {self.car!r}")
         try:
             object.__setattr__(self, "features", model_inputs.check_inputs(self.features))
             model_inputs.check_prior(self.prior)
@@ -78,7 +92,7 @@ class InputSpec:
         """The run's car: from its bag's metadata, else the spec's; None when not needed."""
         if not self.needs_vehicle:
             return None
-        recorded = run.run_metadata.get("vehicle")
+        recorded = None if self.car == "given" else run.run_metadata.get("vehicle")
         if recorded is not None:
             try:
                 return VehicleDescription.from_mapping(recorded, f"{run.name}: vehicle")
@@ -86,8 +100,13 @@ class InputSpec:
                 raise DatasetError(str(err)) from None
         if self.vehicle is None:
             raise DatasetError(
-                f"{run.name}: the model reads the vehicle's nominal parameters, but the bag "
-                "records no vehicle; give one (a vehicle description YAML)"
+                f"{run.name}: the model reads the vehicle's nominal parameters, but "
+                + (
+                    "the given car is asked for"
+                    if self.car == "given"
+                    else "the bag records no vehicle"
+                )
+                + "; give one (a vehicle description YAML)"
             )
         return self.vehicle
 
@@ -98,7 +117,9 @@ class InputSpec:
             from . import observer
 
             assert self.observer is not None  # set in __post_init__
-            columns.update(observer.columns(run, self.observer, self.observer_params_file))
+            columns.update(
+                observer.columns(run, self.observer, self.observer_params_file, self.car)
+            )
         return columns
 
     def inputs(self, run: Run) -> FloatArray:

@@ -17,6 +17,7 @@ cache for many runs in worker processes.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -86,32 +87,89 @@ def _params_of_car(vehicle_json: str) -> dict[str, Any]:
     return nominal_parameters(BACKEND, json.loads(vehicle_json))
 
 
-def run_params(run: Run, params_file: str | None) -> tuple[dict[str, Any], float]:
-    """(``ukf`` params file contents, steering limit [m]) for ``run``: from its bag's
-    vehicle record, else from ``params_file`` (a recording of a real car)."""
+def params_of_described(vehicle: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``ukf`` params of the car a simulated car's description stands for: what a
+    user who knows only the description gives the node (:mod:`sideslip_sim.described_car`)."""
+    return dict(_params_of_described(json.dumps(dict(vehicle), sort_keys=True, default=str)))
+
+
+@functools.lru_cache(maxsize=256)
+def _params_of_described(vehicle_json: str) -> dict[str, Any]:
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_sim.described_car import described_vehicle
+    from sideslip_sim.fleet import FleetError
+
+    vehicle = json.loads(vehicle_json)
+    name = str(vehicle.get("name", "car"))
+    nominal = VehicleDescription.from_mapping(vehicle, where=name)
+    try:
+        car = described_vehicle(
+            name=f"{name}_described", layout=vehicle.get("drive_layout"), **nominal.to_dict()
+        )
+    except FleetError as err:
+        raise DatasetError(str(err)) from None
+    record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
+    return params_of_vehicle(record)
+
+
+def run_params(
+    run: Run, params_file: str | None, *, car: str = "recorded"
+) -> tuple[dict[str, Any], float]:
+    """(``ukf`` params file contents, steering limit [m]) for ``run``: by ``car``
+    (:data:`~sideslip_training.inputs.CAR_SOURCES`) from its bag's vehicle record
+    (``recorded``: the simulation's true parameters; ``described``: the car its
+    description stands for, :mod:`sideslip_sim.described_car`), else from
+    ``params_file`` (a recording of a real car; ``given``: for every run).
+
+    The steering limit, a node setting and not a car parameter the model learns, comes
+    from the record where there is one."""
     from sideslip_estimator.inputs import InputLimits
 
     from .physics_params import steering_limit_m
 
     vehicle = run.run_metadata.get("vehicle")
-    if isinstance(vehicle, Mapping):
+    recorded = isinstance(vehicle, Mapping)
+    if recorded and car == "recorded":
         return params_of_vehicle(vehicle), steering_limit_m(vehicle)
+    if recorded and car == "described":
+        return params_of_described(vehicle), steering_limit_m(vehicle)
     if params_file is None:
         raise DatasetError(
-            f"{run.name}: the model reads the UKF observer, but the bag records no vehicle; "
-            "give the car's ukf params file"
+            f"{run.name}: the model reads the UKF observer, but "
+            + ("the given car is asked for" if recorded else "the bag records no vehicle")
+            + "; give the car's ukf params file"
         )
+    return read_params_file(params_file), (
+        steering_limit_m(vehicle) if recorded else InputLimits().stl_m
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _read_params_file(path: str, mtime_ns: int) -> dict[str, Any]:
     try:
-        data = yaml.safe_load(Path(params_file).read_text())
+        data = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as err:
-        raise DatasetError(f"observer params file {params_file}: cannot read ({err})") from None
-    return dict(data), InputLimits().stl_m
+        raise DatasetError(f"observer params file {path}: cannot read ({err})") from None
+    if not isinstance(data, dict):
+        raise DatasetError(f"observer params file {path}: expected a mapping of parameters")
+    return data
 
 
-def training_envelope(runs: Sequence[Run], params_file: str | None) -> FleetEnvelope:
+def read_params_file(path: str) -> dict[str, Any]:
+    """A ``ukf`` params file's contents (read once per file version)."""
+    try:
+        mtime = Path(path).stat().st_mtime_ns
+    except OSError as err:
+        raise DatasetError(f"observer params file {path}: cannot read ({err})") from None
+    return dict(_read_params_file(path, mtime))
+
+
+def training_envelope(
+    runs: Sequence[Run], params_file: str | None, *, car: str = "recorded"
+) -> FleetEnvelope:
     """The range of the cars of ``runs`` (:mod:`sideslip_msgs_py.fleet_envelope`), from
     their ``ukf`` params as the observer columns were computed with."""
-    return FleetEnvelope.of_cars(run_params(run, params_file)[0] for run in runs)
+    return FleetEnvelope.of_cars(run_params(run, params_file, car=car)[0] for run in runs)
 
 
 def _digest(run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float) -> str:
@@ -183,10 +241,10 @@ class Recorder:
 
 
 def columns(
-    run: Run, values: Mapping[str, Any], params_file: str | None = None
+    run: Run, values: Mapping[str, Any], params_file: str | None = None, car: str = "recorded"
 ) -> dict[str, FloatArray]:
     """The observer columns of ``run``, from the disk cache when there."""
-    params, stl = run_params(run, params_file)
+    params, stl = run_params(run, params_file, car=car)
     path = cache_dir() / f"{_digest(run, params, values, stl)}.npz"
     recent = _RECENT.get(path)
     if recent is not None:
@@ -221,8 +279,8 @@ def _load(path: Path, samples: int) -> dict[str, FloatArray] | None:
     return got if all(len(v) == samples for v in got.values()) else None
 
 
-def _fill(run: Run, values: Mapping[str, Any], params_file: str | None) -> None:
-    columns(run, values, params_file)
+def _fill(run: Run, values: Mapping[str, Any], params_file: str | None, car: str) -> None:
+    columns(run, values, params_file, car)
 
 
 def precompute(
@@ -230,6 +288,7 @@ def precompute(
     values: Mapping[str, Any],
     params_file: str | None = None,
     *,
+    car: str = "recorded",
     jobs: int = 1,
     progress: bool = True,
 ) -> None:
@@ -242,12 +301,12 @@ def precompute(
     try:
         if jobs <= 1 or len(runs) <= 1:
             for r in runs:
-                _fill(r, values, params_file)
+                _fill(r, values, params_file, car)
                 bar.update()
             return
         ctx = multiprocessing.get_context("fork")
         with futures.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-            pending = [pool.submit(_fill, r, values, params_file) for r in runs]
+            pending = [pool.submit(_fill, r, values, params_file, car) for r in runs]
             for fut in futures.as_completed(pending):
                 fut.result()
                 bar.update()

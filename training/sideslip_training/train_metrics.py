@@ -55,6 +55,7 @@ def pooled_test_metrics(
         dt_s=meta.dt_s,
         vehicle=spec.vehicle if spec is not None else None,
         observer_params_file=spec.observer_params_file if spec is not None else None,
+        car=spec.car if spec is not None else "recorded",
     )
     out = {
         name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}

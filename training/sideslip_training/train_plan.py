@@ -166,7 +166,18 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
     step_s = 1.0 / args.rate_hz
     window = window_steps(step_s, steps=args.window_steps, seconds=args.window_s)
     observer = init.meta.observer if init is not None else None
-    spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file)
+    spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file, car=args.car)
+    if args.car == "given":
+        missing = [
+            option
+            for option, needed, given in (
+                ("--vehicle", spec.needs_vehicle, vehicle),
+                ("--observer-params", spec.needs_observer, observer_file),
+            )
+            if needed and given is None
+        ]
+        if missing:
+            raise CliError(f"--car given: the model's inputs need {' and '.join(missing)}")
     keep = init.normalizer if init is not None and args.normalization == "keep" else None
     choice = DataChoice(
         data=args.data,

@@ -199,7 +199,12 @@ def load_training_data(
         assert spec.observer is not None
         log(f"UKF observer over {len(runs)} run(s) (cached in {observer.cache_dir()})")
         observer.precompute(
-            runs, spec.observer, spec.observer_params_file, jobs=workers, progress=progress
+            runs,
+            spec.observer,
+            spec.observer_params_file,
+            car=spec.car,
+            jobs=workers,
+            progress=progress,
         )
     if normalizer is None:
         normalizer = Normalizer.fit(train_runs, spec, window)
