@@ -461,6 +461,26 @@ def test_fine_tuning_starts_from_the_models_weights_and_statistics(sim_bag_dir, 
     assert read_artifact(refit)[1].provenance["normalization"] == "refit"
 
 
+def test_a_fine_tuning_that_never_beats_its_start_keeps_the_start_and_says_so(
+    sim_bag_dir, tmp_path, capsys
+):
+    base = tmp_path / "base.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(base), *TINY]) == 0
+    ruined = tmp_path / "ruined.safetensors"
+    # Steps too small to change the validation MAE: no epoch is better than the start,
+    # so the start's weights come back exactly (the trainer's own test makes it worse).
+    wild = ["--data", str(sim_bag_dir), "--init", str(base), "--learning-rate", "1e-12"]
+    capsys.readouterr()
+    assert train_main([*wild, "--out", str(ruined), *TINY]) == 0
+    assert "no epoch of fine-tuning beat the starting model" in capsys.readouterr().err
+    before, after = read_artifact(base), read_artifact(ruined)
+    for name, tensor in before[0].items():
+        np.testing.assert_array_equal(after[0][name], tensor, err_msg=name)
+    metrics = json.loads((tmp_path / "ruined.run" / "metrics.json").read_text())
+    assert metrics["kept_start_weights"] is True and metrics["best_epoch"] == 0
+
+
 @pytest.mark.parametrize(
     ("extra", "named"),
     [

@@ -86,6 +86,32 @@ def test_weight_averaging_keeps_the_averaged_weights_it_scored(data):
     assert avg.history[avg.best_epoch - 1].val_mae_deg == avg.best_val_mae_deg
 
 
+@pytest.mark.parametrize("average", [False, True])
+def test_fine_tuning_never_returns_a_model_worse_on_validation_than_its_start(data, average):
+    from sideslip_training.trainer import mae_deg
+
+    _train, val, norm = data
+    cpu = torch.device("cpu")
+    start = train_model(_cfg(seed=4, max_epochs=8), *data)
+    state = {k: v.clone() for k, v in start.model.state_dict().items()}
+    before = mae_deg(start.model, val.to_torch(cpu), norm, cpu, len(val.ends))
+    # A step this large throws the trained weights away at every epoch.
+    worse = train_model(
+        _cfg(seed=4, learning_rate=5.0, patience=2, average_weights=average),
+        *data,
+        init_state=state,
+    )
+    assert worse.start_val_mae_deg == pytest.approx(before, rel=1e-6)
+    assert all(r.val_mae_deg > before for r in worse.history)
+    assert worse.best_epoch == 0 and worse.best_val_mae_deg == worse.start_val_mae_deg
+    for name, w in worse.model.state_dict().items():
+        assert torch.equal(w, state[name]), name
+    # A gentle step that helps is kept as usual.
+    better = train_model(_cfg(seed=4, learning_rate=1e-3, max_epochs=3), *data, init_state=state)
+    if better.best_epoch:
+        assert better.best_val_mae_deg < better.start_val_mae_deg
+
+
 def test_a_run_that_never_yields_a_finite_epoch_is_an_error(data):
     with pytest.raises(ValueError, match="no epoch"):
         train_model(_cfg(learning_rate=1e30, max_epochs=2, seed=0), *data)

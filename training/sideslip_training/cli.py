@@ -353,7 +353,17 @@ def _validate_and_refit(
     (plan.run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     data = plan.data
     metrics = {**val_metrics(result, data.val, data.normalizer), "best_epoch": result.best_epoch}
-    if wants_refit(args.refit, pso=args.pso, val_given=bool(args.val), split=split):
+    if result.best_epoch == 0:
+        # Always said: the fine-tuning made the model worse on validation at every epoch.
+        print(
+            f"sideslip-train: warning: no epoch of fine-tuning beat the starting model on "
+            f"validation (MAE {result.start_val_mae_deg:.4f} deg at the start, "
+            f"{min(r.val_mae_deg for r in result.history):.4f} at best): kept its weights "
+            "(try a lower --learning-rate, or more data)",
+            file=sys.stderr,
+        )
+        metrics["kept_start_weights"] = True
+    elif wants_refit(args.refit, pso=args.pso, val_given=bool(args.val), split=split):
         # The epoch count chosen on validation, now on all the data before the test part.
         result, refit_history = refit(result, plan, log, init_state=plan.init_state())
         metrics["refit_epochs"] = len(refit_history)

@@ -70,16 +70,21 @@ class EpochRecord:
 class TrainResult:
     model: SideslipNet  # the best epoch's weights, on the CPU, in eval mode
     best_epoch: int
+    """1-based; 0 when fine-tuning and no epoch beat the starting weights on validation
+    (the model is then those weights)."""
     best_val_mae_deg: float
     history: list[EpochRecord] = field(default_factory=list)
     seconds: float = 0.0
     device: str = "cpu"
     stopped_early: bool = False
+    start_val_mae_deg: float | None = None
+    """Validation MAE of the starting weights when fine-tuning (None from scratch)."""
 
     def summary(self) -> dict[str, object]:
         return {
             "best_epoch": self.best_epoch,
             "best_val_mae_deg": self.best_val_mae_deg,
+            "start_val_mae_deg": self.start_val_mae_deg,
             "epochs_run": len(self.history),
             "stopped_early": self.stopped_early,
             "seconds": self.seconds,
@@ -125,6 +130,9 @@ def train_model(
 ) -> TrainResult:
     """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE; from the
     weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation.
+    A fine-tuning is scored on ``val`` before its first step too, and keeps the
+    starting weights (``best_epoch`` 0) when no epoch beats them: it never returns a
+    model worse on validation than the one it started from.
     ``keep_last``: run all ``max_epochs`` and keep the last epoch's weights (a refit
     whose epoch count was chosen before, when ``val`` is part of ``train``)."""
     device = pick_device(cfg.device)
@@ -151,6 +159,10 @@ def train_model(
 
     result = TrainResult(model=model, best_epoch=0, best_val_mae_deg=math.inf, device=str(device))
     best_state = copy.deepcopy(model.state_dict())
+    if init_state is not None and not keep_last:
+        result.start_val_mae_deg = mae_deg(scored, val_t, normalizer, device, n_val)
+        if math.isfinite(result.start_val_mae_deg):
+            result.best_val_mae_deg = result.start_val_mae_deg
     since_best = 0
     started = time.perf_counter()
     for epoch in range(1, cfg.max_epochs + 1):
@@ -191,7 +203,7 @@ def train_model(
             if since_best >= cfg.patience:
                 result.stopped_early = True
                 break
-    if result.best_epoch == 0:
+    if not math.isfinite(result.best_val_mae_deg):
         raise ValueError(
             f"no epoch with a finite validation MAE (lr {cfg.learning_rate:g}, "
             f"{cfg.hidden_units} units): training diverged"
