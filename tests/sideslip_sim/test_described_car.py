@@ -20,14 +20,14 @@ from sideslip_sim.plausibility import plausibility_problems
 from sideslip_sim.tire import load_tire
 from sideslip_sim.ukf_params import main
 
-SEDAN = {
-    "mass_kg": 1550.0,
-    "wheelbase_m": 2.85,
-    "cg_to_front_axle_m": 1.368,
-    "cg_height_m": 0.54,
-    "track_m": 1.57,
-    "stl_per_road_wheel_angle_m_per_rad": 1.7,
-    "tire_rolling_radius_m": 0.32,
+WAGON = {
+    "mass_kg": 1720.0,
+    "wheelbase_m": 2.79,
+    "cg_to_front_axle_m": 1.19,
+    "cg_height_m": 0.58,
+    "track_m": 1.58,
+    "stl_per_road_wheel_angle_m_per_rad": 1.55,
+    "tire_rolling_radius_m": 0.33,
 }
 
 
@@ -65,7 +65,7 @@ def test_any_fleet_like_description_completes_to_the_same_plausible_car_every_ti
     mass: float, wheelbase: float, front: float, cg_height: float
 ) -> None:
     values = {
-        **SEDAN,
+        **WAGON,
         "mass_kg": mass,
         "wheelbase_m": wheelbase,
         "cg_to_front_axle_m": (1.0 - front) * wheelbase,
@@ -83,21 +83,21 @@ def test_any_fleet_like_description_completes_to_the_same_plausible_car_every_ti
 
 def test_a_description_no_passenger_car_matches_is_refused_with_the_reason() -> None:
     with pytest.raises(FleetError, match="static stability factor"):
-        described_vehicle(name="tall", **{**SEDAN, "cg_height_m": 1.6})
+        described_vehicle(name="tall", **{**WAGON, "cg_height_m": 1.6})
     with pytest.raises(FleetError, match="between the axles"):
-        described_vehicle(name="bad", **{**SEDAN, "cg_to_front_axle_m": 3.0})
+        described_vehicle(name="bad", **{**WAGON, "cg_to_front_axle_m": 3.0})
     with pytest.raises(FleetError, match="layout"):
-        described_vehicle(name="bad", layout="6wd", **SEDAN)
+        described_vehicle(name="bad", layout="6wd", **WAGON)
 
 
 def test_the_cli_writes_the_described_cars_ukf_file(tmp_path: Path, capsys) -> None:
     path = tmp_path / "my_car.yaml"
-    path.write_text(yaml.safe_dump({**SEDAN, "name": "my_car", "drive_layout": "rwd"}))
+    path.write_text(yaml.safe_dump({**WAGON, "name": "my_car", "drive_layout": "rwd"}))
     assert main([str(path), "--description"]) == 0
     params = yaml.safe_load(capsys.readouterr().out)
     assert params["name"] == "my_car"
-    assert params["mass_kg"] == pytest.approx(SEDAN["mass_kg"], rel=1e-5)
+    assert params["mass_kg"] == pytest.approx(WAGON["mass_kg"], rel=1e-5)
     UkfParams.from_mapping(params, "cli")  # the estimator's back-end accepts it as it is
-    path.write_text(yaml.safe_dump({**SEDAN, "cg_height_m": 1.6}))
+    path.write_text(yaml.safe_dump({**WAGON, "cg_height_m": 1.6}))
     assert main([str(path), "--description"]) == 2
     assert "static stability factor" in capsys.readouterr().err

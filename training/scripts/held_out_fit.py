@@ -88,6 +88,34 @@ def pooled_mae(report: Path, stems: list[str]) -> dict[str, float]:
     return out
 
 
+class _Failed(Exception):
+    def __init__(self, code: int) -> None:
+        self.code = code
+
+
+def fit_car(
+    args: argparse.Namespace, name: str, car: VehicleParams, work: Path
+) -> tuple[list[str], Path, Path, float]:
+    """The car's 18 benchmark bags, its description file, and ``sideslip-fit`` from it
+    (``args.features``; skipped when ``work/fit.safetensors`` exists) with its wall time."""
+    work.mkdir(parents=True, exist_ok=True)
+    bags = sorted(str(b) for b in args.held_out.glob(f"{name}_mu*"))
+    if len(bags) != 18:
+        print(f"{name}: expected 18 held-out runs under {args.held_out}, got {len(bags)}")
+        raise _Failed(2)
+    started = time.perf_counter()
+    desc = work / "description.yaml"
+    desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
+    fit = work / "fit.safetensors"
+    if not fit.exists():
+        code = fit_main(["--vehicle", str(desc), "--out", str(fit), "--profile", "quick",
+                         "--features", args.features, "--seed", str(args.seed),
+                         "--quiet"])  # fmt: skip
+        if code:
+            raise _Failed(code)
+    return bags, desc, fit, time.perf_counter() - started
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--held-out", type=Path, default=Path("data/held-out"))
@@ -99,25 +127,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.features == "measurable":
         return measurable(args)
     cars = held_out_vehicles()
-    names = args.cars or list(cars)
     results = {}
-    for name in names:
+    for name in args.cars or list(cars):
         car, work = cars[name], args.out / name
-        work.mkdir(parents=True, exist_ok=True)
-        bags = sorted(str(b) for b in args.held_out.glob(f"{name}_mu*"))
-        if len(bags) != 18:
-            print(f"{name}: expected 18 held-out runs under {args.held_out}, got {len(bags)}")
-            return 2
-        started = time.perf_counter()
-        desc = work / "description.yaml"
-        desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
-        fit = work / "fit.safetensors"
-        if not fit.exists():
-            code = fit_main(["--vehicle", str(desc), "--out", str(fit), "--profile", "quick",
-                             "--seed", str(args.seed), "--quiet"])  # fmt: skip
-            if code:
-                return code
-        fit_s = time.perf_counter() - started
+        try:
+            bags, _desc, fit, fit_s = fit_car(args, name, car, work)
+        except _Failed as failed:
+            return failed.code
         exact = work / "exact.safetensors"
         if not exact.exists():
             data = work / "exact-train"
@@ -165,22 +181,10 @@ def measurable(args: argparse.Namespace) -> int:
     results = {}
     for name in args.cars or list(cars):
         car, work = cars[name], args.out / name
-        work.mkdir(parents=True, exist_ok=True)
-        bags = sorted(str(b) for b in args.held_out.glob(f"{name}_mu*"))
-        if len(bags) != 18:
-            print(f"{name}: expected 18 held-out runs under {args.held_out}, got {len(bags)}")
-            return 2
-        started = time.perf_counter()
-        desc = work / "description.yaml"
-        desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
-        fit = work / "fit.safetensors"
-        if not fit.exists():
-            code = fit_main(["--vehicle", str(desc), "--out", str(fit), "--profile", "quick",
-                             "--features", "measurable", "--seed", str(args.seed),
-                             "--quiet"])  # fmt: skip
-            if code:
-                return code
-        fit_s = time.perf_counter() - started
+        try:
+            bags, desc, fit, fit_s = fit_car(args, name, car, work)
+        except _Failed as failed:
+            return failed.code
         described = fit.with_suffix(".ukf.yaml")
         true_file = work / "true.ukf.yaml"
         record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
