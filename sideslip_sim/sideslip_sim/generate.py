@@ -45,7 +45,7 @@ from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_se
 from sideslip_sim.simulate import DT_S, SimResult, SimulationError, simulate
 from sideslip_sim.tir_file import TirError
 from sideslip_sim.tire import load_tire
-from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle
+from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle, vehicle_record
 
 INDEX_FILE = "index.json"
 EXIT_BAD_INPUT = 2
@@ -113,7 +113,7 @@ def run_metadata(
         "generator": f"sideslip_sim {__version__}",
         "preset": preset_name,
         "maneuver": maneuver.to_dict(),
-        "vehicle": {k: v for k, v in dataclasses.asdict(vehicle).items() if k != "source_path"},
+        "vehicle": vehicle_record(vehicle),
         "vehicle_digest": vehicle_digest(vehicle),
         "vehicle_checks": dataclasses.asdict(plausibility(vehicle, tire)),
         "spin_onset_s": spin_onset,

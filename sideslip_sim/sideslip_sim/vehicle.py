@@ -234,6 +234,12 @@ def vehicle_from_dict(data: dict[str, Any], where: str = "<dict>") -> VehiclePar
     return VehicleParams(**values, source_path=where if where != "<dict>" else "")
 
 
+def vehicle_record(vehicle: VehicleParams) -> dict[str, object]:
+    """The vehicle's parameters as a bag's metadata records them: every field but the
+    file it was read from (:func:`vehicle_from_dict` reads it back)."""
+    return {k: v for k, v in dataclasses.asdict(vehicle).items() if k != "source_path"}
+
+
 def load_vehicle(name_or_path: str | Path) -> VehicleParams:
     """Load a vehicle by shipped name (`paper_sedan`) or by path to a YAML file."""
     path = Path(name_or_path)

@@ -17,13 +17,9 @@ from sideslip_msgs_py.artifact import read_artifact
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from sideslip_sim.held_out import held_out_vehicles
 from sideslip_sim.presets import fleet
-from sideslip_sim.vehicle import VehicleParams, load_vehicle
+from sideslip_sim.vehicle import VehicleParams, load_vehicle, vehicle_record
 from sideslip_training.init_model import resolve
 from sideslip_training.physics_params import nominal_parameters
-
-
-def _record(car: VehicleParams) -> dict:
-    return {k: v for k, v in vars(car).items() if k != "source_path"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     cars += [load_vehicle(name) for name in args.vehicle]
     inside = 0
     for car in cars:
-        outside = envelope.outside(nominal_parameters("ukf", _record(car)), car.name)
+        outside = envelope.outside(nominal_parameters("ukf", vehicle_record(car)), car.name)
         inside += not outside
         print(f"{car.name:28s} {'inside' if not outside else 'OUTSIDE: ' + '; '.join(outside)}")
     print(f"{inside} of {len(cars)} cars inside {args.model}'s {envelope.cars} training cars")

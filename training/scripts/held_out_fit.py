@@ -46,7 +46,7 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_vehicles
 from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
-from sideslip_sim.vehicle import VehicleParams
+from sideslip_sim.vehicle import VehicleParams, vehicle_record
 from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import FIT_PROFILES, SHIPPED_MEASURABLE, SHIPPED_PAPER
@@ -187,9 +187,10 @@ def measurable(args: argparse.Namespace) -> int:
             return failed.code
         described = fit.with_suffix(".ukf.yaml")
         true_file = work / "true.ukf.yaml"
-        record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
         true_file.write_text(
-            params_yaml("ukf", name, nominal_parameters("ukf", record), "held_out_fit.py")
+            params_yaml(
+                "ukf", name, nominal_parameters("ukf", vehicle_record(car)), "held_out_fit.py"
+            )
         )
         shipped = str(resolve(SHIPPED_MEASURABLE))
         mae = {}

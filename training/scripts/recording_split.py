@@ -54,6 +54,7 @@ from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
 from sideslip_sim.presets import VehicleRun, fleet_runs
+from sideslip_sim.vehicle import vehicle_record
 from sideslip_training.cli import train_main
 from sideslip_training.dataset import find_bags, load_runs
 
@@ -211,7 +212,7 @@ def car_files(car_name: str, cars: int, out: Path) -> tuple[Path, Path]:
 
     fleet = sample_fleet(cars, SEED, prefix="rec", exclude_digests=held_out_digests()).vehicles
     car = next(c for c in fleet if c.name == car_name)
-    record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
+    record = vehicle_record(car)
     folder = out / "cars"
     folder.mkdir(parents=True, exist_ok=True)
     description, params = folder / f"{car_name}.yaml", folder / f"{car_name}.ukf.yaml"

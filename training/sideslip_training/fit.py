@@ -124,12 +124,15 @@ class Description:
 
     def ukf_params_yaml(self) -> str:
         """The described car's ``ukf`` params file (what the node's UKF is given)."""
+        from sideslip_sim.vehicle import vehicle_record
+
         from .physics_params import nominal_parameters, params_yaml
 
-        car = dataclasses.asdict(self.vehicle())
-        car.pop("source_path")
         return params_yaml(
-            "ukf", self.name, nominal_parameters("ukf", car), "sideslip-fit from the description"
+            "ukf",
+            self.name,
+            nominal_parameters("ukf", vehicle_record(self.vehicle())),
+            "sideslip-fit from the description",
         )
 
     def digest(self) -> str:

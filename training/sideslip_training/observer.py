@@ -17,7 +17,6 @@ cache for many runs in worker processes.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import json
@@ -98,6 +97,7 @@ def _params_of_described(vehicle_json: str) -> dict[str, Any]:
     from sideslip_msgs_py.vehicle_description import VehicleDescription
     from sideslip_sim.described_car import described_vehicle
     from sideslip_sim.fleet import FleetError
+    from sideslip_sim.vehicle import vehicle_record
 
     vehicle = json.loads(vehicle_json)
     name = str(vehicle.get("name", "car"))
@@ -108,8 +108,7 @@ def _params_of_described(vehicle_json: str) -> dict[str, Any]:
         )
     except FleetError as err:
         raise DatasetError(str(err)) from None
-    record = {k: v for k, v in dataclasses.asdict(car).items() if k != "source_path"}
-    return params_of_vehicle(record)
+    return params_of_vehicle(vehicle_record(car))
 
 
 def run_params(
