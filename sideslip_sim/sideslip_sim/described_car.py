@@ -19,6 +19,10 @@ to correct.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
+from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_sim.fleet import CarDesign, FleetError, FleetRanges, design_vehicle
 from sideslip_sim.plausibility import plausibility_problems
 from sideslip_sim.tire import DEFAULT_TIR, load_tire
@@ -95,3 +99,19 @@ def described_vehicle(
     if problems:
         raise FleetError(f"{name}: the described car is not plausible: {'; '.join(problems)}")
     return car
+
+
+def described_from_mapping(
+    data: Mapping[str, Any], where: str, name: str | None = None
+) -> VehicleParams:
+    """The full car of a description mapping (a description file's contents, or a bag's
+    vehicle record: only its description keys and ``drive_layout`` are read).
+
+    Raises VehicleDescriptionError for a mapping that is no description, FleetError for
+    a car no passenger car matches (both ValueErrors)."""
+    nominal = VehicleDescription.from_mapping(data, where=where)
+    return described_vehicle(
+        name=name or str(data.get("name", where)),
+        layout=data.get("drive_layout"),
+        **nominal.to_dict(),
+    )

@@ -139,16 +139,12 @@ def _described(path: str) -> VehicleParams:
 
     import yaml
 
-    from sideslip_msgs_py.vehicle_description import VehicleDescription
-    from sideslip_sim.described_car import described_vehicle
+    from sideslip_sim.described_car import described_from_mapping
 
     data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping of parameters")
-    layout = data.pop("drive_layout", None)
-    name = str(data.get("name", Path(path).stem))
-    nominal = VehicleDescription.from_mapping(data, where=path)
-    return described_vehicle(name=name, layout=layout, **nominal.to_dict())
+    return described_from_mapping(data, path, name=str(data.get("name", Path(path).stem)))
 
 
 def main(argv: list[str] | None = None) -> int:

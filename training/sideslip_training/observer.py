@@ -94,19 +94,14 @@ def params_of_described(vehicle: Mapping[str, Any]) -> dict[str, Any]:
 
 @functools.lru_cache(maxsize=256)
 def _params_of_described(vehicle_json: str) -> dict[str, Any]:
-    from sideslip_msgs_py.vehicle_description import VehicleDescription
-    from sideslip_sim.described_car import described_vehicle
-    from sideslip_sim.fleet import FleetError
+    from sideslip_sim.described_car import described_from_mapping
     from sideslip_sim.vehicle import vehicle_record
 
     vehicle = json.loads(vehicle_json)
     name = str(vehicle.get("name", "car"))
-    nominal = VehicleDescription.from_mapping(vehicle, where=name)
     try:
-        car = described_vehicle(
-            name=f"{name}_described", layout=vehicle.get("drive_layout"), **nominal.to_dict()
-        )
-    except FleetError as err:
+        car = described_from_mapping(vehicle, name, name=f"{name}_described")
+    except ValueError as err:  # not a description, or no plausible car
         raise DatasetError(str(err)) from None
     return params_of_vehicle(vehicle_record(car))
 
