@@ -29,7 +29,7 @@ from .dataset import DatasetError
 from .export import export_model
 from .final_model import model_metadata, refit, wants_refit
 from .init_model import InitError
-from .inputs import CAR_SOURCES
+from .inputs import add_car_argument
 from .run_folder import start_run_folder
 from .search import run_pso
 from .train_metrics import pooled_test_metrics, val_metrics
@@ -166,14 +166,7 @@ def _train_parser() -> argparse.ArgumentParser:
         help="nominal parameters (YAML) of the car of bags that record none, for inputs "
         "that read the vehicle (simulated bags record theirs)",
     )
-    p.add_argument(
-        "--car",
-        choices=list(CAR_SOURCES),
-        default="recorded",
-        help="where the car parameters of the UKF observer and the vehicle inputs come "
-        "from for bags that record their car: "
-        + "; ".join(f"{k}: {v}" for k, v in CAR_SOURCES.items()),
-    )
+    add_car_argument(p)
     p.add_argument("--profile", default="quick", choices=list(PROFILES))
     p.add_argument(
         "--rate-hz",

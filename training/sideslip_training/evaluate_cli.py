@@ -22,7 +22,7 @@ from .cli_errors import EXIT_BAD_INPUT, CliError
 from .config import DT_S, WINDOW_STEPS
 from .dataset import DatasetError, load_runs
 from .export import load_model
-from .inputs import CAR_SOURCES
+from .inputs import add_car_argument
 
 
 def _evaluate_parser() -> argparse.ArgumentParser:
@@ -63,13 +63,7 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         help="the car's ukf params file for bags that record none, for models that read "
         "the UKF observer",
     )
-    p.add_argument(
-        "--car",
-        choices=list(CAR_SOURCES),
-        default="recorded",
-        help="where the models' car parameters (UKF observer, vehicle inputs) come from "
-        "for bags that record their car: " + "; ".join(f"{k}: {v}" for k, v in CAR_SOURCES.items()),
-    )
+    add_car_argument(p)
     p.add_argument(
         "--single-track-params",
         metavar="FILE",

@@ -10,6 +10,7 @@ gets its columns from :mod:`.observer` (the filter with ``observer`` values, cac
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
@@ -37,6 +38,17 @@ CAR_SOURCES: Final = {
     "description runs",
 }
 """Where a run's car parameters (the UKF observer's, the ``vehicle.*`` inputs') come from."""
+
+
+def add_car_argument(parser: argparse.ArgumentParser) -> None:
+    """``--car`` (:data:`CAR_SOURCES`), as sideslip-train and sideslip-evaluate take it."""
+    parser.add_argument(
+        "--car",
+        choices=list(CAR_SOURCES),
+        default="recorded",
+        help="where the car parameters of the UKF observer and the vehicle inputs come from "
+        "for bags that record their car: " + "; ".join(f"{k}: {v}" for k, v in CAR_SOURCES.items()),
+    )
 
 
 @dataclass(frozen=True)

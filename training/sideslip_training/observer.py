@@ -138,8 +138,8 @@ def run_params(
     )
 
 
-@functools.lru_cache(maxsize=16)
-def _read_params_file(path: str, mtime_ns: int) -> dict[str, Any]:
+def read_params_file(path: str) -> dict[str, Any]:
+    """A ``ukf`` params file's contents."""
     try:
         data = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as err:
@@ -147,15 +147,6 @@ def _read_params_file(path: str, mtime_ns: int) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise DatasetError(f"observer params file {path}: expected a mapping of parameters")
     return data
-
-
-def read_params_file(path: str) -> dict[str, Any]:
-    """A ``ukf`` params file's contents (read once per file version)."""
-    try:
-        mtime = Path(path).stat().st_mtime_ns
-    except OSError as err:
-        raise DatasetError(f"observer params file {path}: cannot read ({err})") from None
-    return dict(_read_params_file(path, mtime))
 
 
 def training_envelope(
