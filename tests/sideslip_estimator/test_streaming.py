@@ -31,6 +31,10 @@ torch.set_num_threads(1)
 WINDOW = 100
 ROWS = 300
 TORCH_FLOAT32_ATOL = 1e-6
+TORCH_FLOAT32_RTOL = 1e-6
+"""Against torch's float32 network: its rounding, a few float32 ulps of the output (the
+retrained fleet_ukf_measurable of 2026-12-02 differs by 1.05e-6 at an output of 1.45,
+7e-7 of it); the float64 comparison beside it is the exact one."""
 FLOAT64_ATOL = 1e-12
 SHIPPED = sorted(
     Path(str(p))
@@ -150,11 +154,13 @@ def test_shipped_models_equal_torch_on_every_window(path: Path) -> None:
     rows = z_rows(meta.window_steps + 150, len(meta.features), seed=2)
     y = StreamingLstm.from_artifact(path).run(rows)
     reference = torch_outputs(tensors, meta, rows, torch.float32)
-    np.testing.assert_allclose(y, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
+    np.testing.assert_allclose(y, reference, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL)
     exact = torch_outputs(tensors, meta, rows, torch.float64)
     np.testing.assert_allclose(y, exact, rtol=0, atol=FLOAT64_ATOL)
     fused = StreamingLstm.from_artifact(path, kernel="numba").run(rows)
-    np.testing.assert_allclose(fused, reference, rtol=0, atol=TORCH_FLOAT32_ATOL)
+    np.testing.assert_allclose(
+        fused, reference, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL
+    )
 
 
 @pytest.mark.parametrize("name", ["pso_lstm_paper", "fleet_lstm_paper"])

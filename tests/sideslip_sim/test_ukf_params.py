@@ -43,14 +43,14 @@ def test_fitted_magic_formula_reproduces_the_axle_force_curve(vehicle: str, axle
     assert mf.b * mf.c * mf.mu_peak * fz == pytest.approx(stiffness, rel=0.005)
 
 
-def test_fit_follows_the_tyre_it_is_given() -> None:
+def test_tyre_fit_follows_the_tyre_it_is_given() -> None:
     # One tyre per axle: a tyre with 20 % less peak friction gives a 20 % lower μ_peak and
     # the same cornering stiffness (MF 5.2's LMUY keeps B·C·D).
     v = load_vehicle("paper_sedan")
     tire = load_tire(str(v.tire_path()))
     slippery = tire.with_values(LMUY=0.8 * tire["LMUY"])
-    params = ukf_parameters(v, tire, slippery)
-    same = ukf_parameters(v, tire, tire)
+    params = ukf_parameters(v, tire, slippery, axles="tyre")
+    same = ukf_parameters(v, tire, tire, axles="tyre")
     assert params["mu_peak_front"] == same["mu_peak_front"]
     assert params["mu_peak_rear"] == pytest.approx(0.8 * float(same["mu_peak_rear"]), rel=2e-3)
     bcd = {

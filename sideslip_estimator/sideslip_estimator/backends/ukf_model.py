@@ -23,9 +23,12 @@ noise) the tyre lag took the MAE from 0.18° to 0.06° (at 80 km/h the front tyr
 ~20 ms; without it the model's forces lead the car's and the filter reads that as low
 friction); estimating μ is what makes low-friction roads and other cars work
 (compact_rwd paper-test 0.22° → 0.08°), at a small cost on a dry road where μ = 1 is
-exactly right; the longitudinal load transfer: paper_sedan 0.063° → 0.055°. Known gaps:
-no lateral load transfer (the axle curves are those of two equally loaded tyres; μ
-absorbs part of it), no roll or compliance steer, nominal mass and inertia (no payload).
+exactly right; the longitudinal load transfer: paper_sedan 0.063° → 0.055°. Lateral
+load transfer and roll steer are not in the equations: the files ``sideslip_sim.ukf_params``
+writes fold them into the axle curves (effective axle characteristics, fitted to the
+whole car's steady cornering; the validation fleet's pooled MAE 0.141° → 0.104°). Known
+gaps: their dynamics (roll lags the lateral acceleration by a few tenths of a second),
+compliance steer, nominal mass and inertia (no payload).
 
 :class:`UkfParams` is the vehicle's file (``python -m sideslip_sim.ukf_params VEHICLE``
 writes it; shipped ones in ``data/ukf``); :class:`SingleTrackMagicFormula` evaluates the
