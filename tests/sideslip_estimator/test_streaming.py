@@ -158,9 +158,7 @@ def test_shipped_models_equal_torch_on_every_window(path: Path) -> None:
     exact = torch_outputs(tensors, meta, rows, torch.float64)
     np.testing.assert_allclose(y, exact, rtol=0, atol=FLOAT64_ATOL)
     fused = StreamingLstm.from_artifact(path, kernel="numba").run(rows)
-    np.testing.assert_allclose(
-        fused, reference, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL
-    )
+    np.testing.assert_allclose(fused, reference, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL)
 
 
 @pytest.mark.parametrize("name", ["pso_lstm_paper", "fleet_lstm_paper"])
