@@ -97,3 +97,13 @@ def test_cli_unknown_vehicle_is_one_line_and_exit_2(capsys: pytest.CaptureFixtur
     assert main(["hovercraft"]) == 2
     err = capsys.readouterr().err
     assert "hovercraft" in err and err.count("\n") == 1
+
+
+def test_cli_axles_tyre_prints_the_tyre_only_fit(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["compact_rwd", "--axles", "tyre"]) == 0
+    out = capsys.readouterr().out
+    assert "--axles tyre" in out.splitlines()[0] and "fitted to the tyre model." in out
+    v = load_vehicle("compact_rwd")
+    tire = load_tire(str(v.tire_path()))
+    assert yaml.safe_load(out) == ukf_parameters(v, tire, tire, axles="tyre")
+    assert yaml.safe_load(out) != yaml.safe_load(SHIPPED.joinpath("compact_rwd.yaml").read_text())
