@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sideslip_sim.maneuvers import Maneuver
+from sideslip_sim.maneuvers import LEAD_IN_S, STEP_RAMP_S, Maneuver
 from sideslip_sim.simulate import SimulationError, simulate
 from sideslip_sim.vehicle import VehicleParams
 
@@ -106,8 +106,7 @@ def steady_cornering_points(
             continue  # a run the model cannot integrate gives no steady state
         if np.max(np.abs(run.beta_rad)) > MAX_BETA_RAD:
             continue
-        # The step steer's ramp ends 1 s in (0.5-s lead-in, 0.5-s ramp).
-        settled = run.t_s > 1.0 + SETTLE_S
+        settled = run.t_s > LEAD_IN_S + STEP_RAMP_S + SETTLE_S
         u, v, r = run.u_mps[settled], run.v_mps[settled], run.yaw_rate_radps[settled]
         a_y = run.ay_mps2[settled]
         r_dot = np.gradient(run.yaw_rate_radps, run.t_s)[settled]

@@ -35,6 +35,7 @@ SCENARIOS = ("scen1", "scen2", "scen3", "scen4")
 
 # Lead-in before open-loop steering starts [s]: the run starts in straight-line equilibrium.
 LEAD_IN_S = 0.5
+STEP_RAMP_S = 0.5  # a step steer's ramp to its held STL [s]
 SINE_FREQUENCY_HZ = 0.5
 SWEEP_START_HZ = 0.2
 SWEEP_END_HZ = 2.0
@@ -232,7 +233,7 @@ def _build_step(m, vehicle, model, t):
     """Ramp to a constant STL over 0.5 s after the lead-in, then hold (ISO 7401 / 4138
     style): the steady-state cornering reference."""
     amp = m.stl_amplitude_m or auto_stl_amplitude(vehicle, model, m.speed_mps, m.mu, m.ay_fraction)
-    ramp = np.clip((t - LEAD_IN_S) / 0.5, 0.0, 1.0)
+    ramp = np.clip((t - LEAD_IN_S) / STEP_RAMP_S, 0.0, 1.0)
     return amp * ramp, np.zeros(t.shape, bool), None
 
 
