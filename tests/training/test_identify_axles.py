@@ -1,0 +1,164 @@
+"""sideslip-identify-axles: the UKF file from a car's own bags, also another stack's."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from sideslip_estimator.backends.ukf_model import UkfParams
+from sideslip_sim.axle_tires import axle_tires
+from sideslip_sim.presets import fleet_runs
+from sideslip_sim.simulate import simulate
+from sideslip_sim.tire import load_tire
+from sideslip_sim.ukf_params import ukf_parameters
+from sideslip_sim.vehicle import load_vehicle
+from sideslip_training.identify_axles import main
+
+
+@pytest.fixture(scope="module")
+def true_file() -> dict:
+    car = load_vehicle("compact_rwd")
+    return ukf_parameters(car, *axle_tires(car, load_tire(str(car.tire_path()))))
+
+
+@pytest.fixture(scope="module")
+def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two minutes of ``compact_rwd`` driving recorded as another stack would: other
+    topics and types, 100 Hz, a steering-wheel angle, the reference velocity from a
+    GNSS/INS in the east/north frame; the paper's noise on the IMU and the steering."""
+    from foreign_bag import TOPIC_MAP, Truth, write_foreign_bag
+
+    folder = tmp_path_factory.mktemp("foreign")
+    rng = np.random.default_rng(3)
+    car = load_vehicle("compact_rwd")
+    for i, vr in enumerate(fleet_runs([car] * 3, 12, 5)):
+        s = simulate(vr.vehicle, vr.maneuver)
+        k = slice(None, None, 4)  # 400 Hz -> 100 Hz
+        n = s.t_s[k].size
+        truth = Truth(
+            stamp_ns=10**15 + np.round(s.t_s[k] * 1e9).astype(np.int64),
+            x_v=s.u_mps[k],
+            y_v=s.v_mps[k],
+            x_a=s.ax_mps2[k] + rng.normal(0, 0.1, n),
+            y_a=s.ay_mps2[k] + rng.normal(0, 0.1, n),
+            r=s.yaw_rate_radps[k] + rng.normal(0, math.radians(0.2), n),
+            stl=s.stl_m[k] + rng.normal(0, 1e-3, n),
+            yaw=s.psi_rad[k] + 0.7,
+        )
+        write_foreign_bag(folder / f"drive{i:02d}", truth)
+    topic_map = folder / "map.yaml"
+    topic_map.write_text(yaml.safe_dump(TOPIC_MAP))
+    return folder, topic_map
+
+
+def test_another_stacks_bags_identify_the_cars_cornering_stiffness(
+    foreign_bags, true_file, tmp_path, capsys
+):
+    """From a start 30 % off on both axles, the 100-Hz foreign bags read through the topic
+    map give a file the UKF back-end loads, with both axles' B within 5 % of the car's."""
+    folder, topic_map = foreign_bags
+    start = dict(true_file, mf_b_front=1.3 * true_file["mf_b_front"])
+    start["mf_b_rear"] = 0.7 * true_file["mf_b_rear"]
+    start_file = tmp_path / "start.ukf.yaml"
+    start_file.write_text(yaml.safe_dump(start))
+    out = tmp_path / "car.ukf.yaml"
+    code = main(["--data", str(folder), "--topic-map", str(topic_map), "--start",
+                 str(start_file), "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "wrote" in capsys.readouterr().out
+    params = UkfParams.load(str(out))
+    assert params.mf_b_front / true_file["mf_b_front"] == pytest.approx(1.0, abs=0.05)
+    assert params.mf_b_rear / true_file["mf_b_rear"] == pytest.approx(1.0, abs=0.05)
+    assert "identified from 12 recording(s)" in out.read_text()
+
+
+def test_a_description_is_a_start(foreign_bags, tmp_path, capsys):
+    folder, topic_map = foreign_bags
+    car = load_vehicle("compact_rwd")
+    desc = tmp_path / "my_car.yaml"
+    desc.write_text(
+        yaml.safe_dump(
+            {
+                "name": "my_car",
+                "mass_kg": car.mass_kg,
+                "wheelbase_m": car.wheelbase_m,
+                "cg_to_front_axle_m": car.cg_to_front_axle_m,
+                "cg_height_m": car.cg_height_m,
+                "track_m": car.track_front_m,
+                "stl_per_road_wheel_angle_m_per_rad": car.stl_per_road_wheel_angle_m_per_rad,
+                "tire_rolling_radius_m": car.tire_rolling_radius_m,
+                "drive_layout": "rwd",
+            }
+        )
+    )
+    out = tmp_path / "my_car.ukf.yaml"
+    code = main(["--data", str(folder), "--topic-map", str(topic_map), "--vehicle", str(desc),
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    text = out.read_text()
+    assert "starting from the description" in text
+    assert UkfParams.load(str(out)).name == "my_car"
+
+
+def test_an_existing_out_is_not_replaced_without_force(foreign_bags, true_file, tmp_path, capsys):
+    folder, topic_map = foreign_bags
+    out = tmp_path / "car.ukf.yaml"
+    out.write_text("keep me\n")
+    start = tmp_path / "start.yaml"
+    start.write_text(yaml.safe_dump(true_file))
+    code = main(["--data", str(folder), "--topic-map", str(topic_map), "--start", str(start),
+                 "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("sideslip-identify-axles: error: --out") and err.count("\n") == 1
+    assert out.read_text() == "keep me\n"
+
+
+def test_bags_without_a_reference_are_refused(make_arrays, true_file, tmp_path, capsys):
+    from sideslip_msgs_py.bag import write_bag
+    from sideslip_msgs_py.sample import SensorNoiseSigma
+
+    write_bag(tmp_path / "bags" / "no_truth", make_arrays(2000, truth=False),
+              sigma=SensorNoiseSigma.paper(), run_metadata={"name": "no_truth"})  # fmt: skip
+    start = tmp_path / "start.yaml"
+    start.write_text(yaml.safe_dump(true_file))
+    code = main(["--data", str(tmp_path / "bags"), "--start", str(start), "--out",
+                 str(tmp_path / "x.yaml")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "no ground truth" in err
+    assert not (tmp_path / "x.yaml").exists()
+
+
+def test_a_start_that_is_no_ukf_file_is_refused_naming_it(foreign_bags, tmp_path, capsys):
+    folder, topic_map = foreign_bags
+    start = tmp_path / "start.yaml"
+    start.write_text("mass_kg: 1500\n")
+    code = main(["--data", str(folder), "--topic-map", str(topic_map), "--start", str(start),
+                 "--out", str(tmp_path / "x.yaml")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"--start {start}" in err and err.count("\n") == 1
+
+
+def test_a_nan_splits_a_recording_into_finite_stretches(make_arrays):
+    """The zero-phase filter must not run across a gap in a channel or the reference."""
+    import dataclasses
+
+    from sideslip_msgs_py.sample import SampleArrays
+    from sideslip_training.dataset import Run
+    from sideslip_training.identify_axles import recorded_runs
+
+    good = make_arrays(1000)
+    cols = {f.name: getattr(good, f.name) for f in dataclasses.fields(good)}
+    yaw = cols["yaw_rate_radps"].copy()
+    yaw[400:410] = np.nan
+    arrays = SampleArrays(**{**cols, "yaw_rate_radps": yaw})
+    parts = recorded_runs([Run("r", Path("r"), arrays)])
+    assert [p.name for p in parts] == ["r~0", "r~1"]
+    assert [p.t_s.size for p in parts] == [400, 590]
+    assert all(np.isfinite(p.yaw_rate_radps).all() for p in parts)
