@@ -18,6 +18,9 @@ units, ``measurable_observer_signals``, ``--prior ukf``). ``--train-args`` are a
 both trainings (e.g. ``--stride 10 --mirror no`` for a quicker comparison than the
 small-data defaults).
 
+``--eval-args`` are added to the scoring (the car files a user's node would run, when
+``--train-args`` gave the trainings such files; ``--tag`` keeps that run's folder apart).
+
 Both trainings take their validation split from the same runs (``--split auto``); all
 three are scored once on the car's 18 held-out benchmark runs. Results (pooled MAE
 [deg]) in ``OUT/CAR/curve.json`` and ``OUT/CAR/curve.md``.
@@ -95,9 +98,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--base", choices=sorted(BASES), default="paper", help="which shipped model")
     p.add_argument("--train-args", default="", help="more sideslip-train options for both")
+    p.add_argument(
+        "--eval-args",
+        default="",
+        help="more sideslip-evaluate options (e.g. the car files the trainings were given: "
+        "--vehicle D --observer-params F --car given --ukf-params F)",
+    )
+    p.add_argument("--tag", default="", help="suffix of the work folder (CAR-BASE-TAG)")
     args = p.parse_args(argv)
     shipped, scratch_model = BASES[args.base]
     work = args.out / args.car if args.base == "paper" else args.out / f"{args.car}-{args.base}"
+    if args.tag:
+        work = work.with_name(f"{work.name}-{args.tag}")
     data = work / "data"
     runs = car_runs(args.car, max(args.minutes), args.seed)
     runs = runs[: len(first_minutes(runs, max(args.minutes)))]
@@ -128,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         report = work / f"report_{minutes:g}min"
         code = evaluate_main(["--model", str(models["finetuned"]), str(models["scratch"]),
                               str(resolve(shipped)), "--data", *bags, "--out", str(report),
-                              "--force"])  # fmt: skip
+                              "--force", *args.eval_args.split()])  # fmt: skip
         if code:
             return code
         mae = pooled_mae(report)

@@ -28,9 +28,14 @@ would run them (``--car given``): the fit, the zero-shot ``fleet_ukf_measurable`
 UKF; beside them the zero-shot model and the UKF with the car's true parameters, which a
 user without its tyre data does not have. No exact-simulation yardstick here.
 ``--zero-shot`` leaves the fit out (minutes instead of an hour): the shipped model and
-the UKF with the described and with the true car's files.
+the UKF with the described and with the true car's files. ``--identify MINUTES`` adds
+both with the axles identified from that much of the car's own labelled driving
+(``sideslip-identify-axles`` from the description; the learning curve's runs of the car,
+``held_out_curve.py``'s seed 7, paper noise), no training.
 
     python training/scripts/held_out_fit.py --features measurable --out data/held-out-fit-measurable
+    python training/scripts/held_out_fit.py --features measurable --zero-shot --identify 5 \
+        --out data/held-out-fit-measurable-zs
 """
 
 from __future__ import annotations
@@ -53,10 +58,13 @@ from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import FIT_PROFILES, SHIPPED_MEASURABLE, SHIPPED_PAPER, Description
 from sideslip_training.fit import main as fit_main
+from sideslip_training.identify_axles import main as identify_main
 from sideslip_training.init_model import resolve
 from sideslip_training.physics_params import nominal_parameters, params_yaml
 
 PROFILE = FIT_PROFILES["quick"]
+OWN_SEED = 7
+"""Seed of a car's own runs for ``--identify``: the learning curve's (held_out_curve.py)."""
 
 
 def description(car: VehicleParams) -> dict[str, object]:
@@ -134,9 +142,18 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="with --features measurable: no fit, only the shipped model and the UKF",
     )
+    p.add_argument(
+        "--identify",
+        type=float,
+        metavar="MINUTES",
+        help="with --features measurable: also score the shipped model and the UKF with "
+        "the axles identified from this many minutes of the car's own labelled driving",
+    )
     args = p.parse_args(argv)
     if args.zero_shot and args.features != "measurable":
         p.error("--zero-shot needs --features measurable")
+    if args.identify is not None and args.features != "measurable":
+        p.error("--identify needs --features measurable")
     if args.features == "measurable":
         return measurable(args)
     cars = held_out_vehicles()
@@ -188,6 +205,28 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def identified(args: argparse.Namespace, name: str, desc: Path) -> Path:
+    """The ``ukf`` file ``sideslip-identify-axles`` makes from the description ``desc``
+    and ``args.identify`` minutes of the car's own runs (generated once, then reused)."""
+    from held_out_curve import car_runs, first_minutes
+
+    work = args.out / name
+    out = work / f"identified-{args.identify:g}min.ukf.yaml"
+    if out.exists():
+        return out
+    own = work / f"own-{args.identify:g}min"
+    if not (own / "index.json").exists():
+        runs = car_runs(name, args.identify, OWN_SEED)
+        runs = runs[: len(first_minutes(runs, args.identify))]
+        prepare_output(own, force=True)
+        generate(runs, own, seed=OWN_SEED, preset_name="held-out-own (yardstick only)",
+                 jobs=2, progress=False)  # fmt: skip
+    code = identify_main(["--vehicle", str(desc), "--data", str(own), "--out", str(out)])
+    if code:
+        raise _Failed(code)
+    return out
+
+
 def measurable(args: argparse.Namespace) -> int:
     """The ``--features measurable`` table (see the module)."""
     cars = held_out_vehicles()
@@ -196,6 +235,7 @@ def measurable(args: argparse.Namespace) -> int:
         car, work = cars[name], args.out / name
         try:
             bags, desc, fit, fit_s = fit_car(args, name, car, work)
+            ident = None if args.identify is None else identified(args, name, desc)
         except _Failed as failed:
             return failed.code
         described = fit.with_suffix(".ukf.yaml")
@@ -213,6 +253,10 @@ def measurable(args: argparse.Namespace) -> int:
              ["--vehicle", str(desc), "--observer-params", str(described), "--car", "given",
               "--ukf-params", str(described)]),
             ("true", [shipped], ["--ukf-params", str(true_file)]),
+            *([] if ident is None else [
+                ("identified", [shipped],
+                 ["--vehicle", str(desc), "--observer-params", str(ident), "--car", "given",
+                  "--ukf-params", str(ident)])]),
         ):  # fmt: skip
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *models, "--data", *bags, "--out", str(report),
@@ -233,6 +277,14 @@ def measurable(args: argparse.Namespace) -> int:
         ("UKF, described car", "UKF [described]"),
         ("zero-shot, true car", f"{SHIPPED_MEASURABLE} [true]"),
         ("UKF, true car", "UKF [true]"),
+        *(
+            []
+            if args.identify is None
+            else [
+                ("zero-shot, identified axles", f"{SHIPPED_MEASURABLE} [identified]"),
+                ("UKF, identified axles", "UKF [identified]"),
+            ]
+        ),
     ]
     lines = ["| car | " + " | ".join(c for c, _ in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for name, r in results.items():
