@@ -148,8 +148,13 @@ def run_points(
     if t.size < 2:
         return RunPoints(run.name, empty, empty, empty, empty)
     rate_hz = 1.0 / float(np.median(np.diff(t)))
-    # sosfiltfilt pads by 3 × (2 × order) samples; shorter runs give no points.
-    if t.size < 30 or settings.cutoff_hz >= 0.5 * rate_hz:
+    if settings.cutoff_hz >= 0.5 * rate_hz:
+        raise IdentificationError(
+            f"{run.name}: recorded at {rate_hz:.4g} Hz, too slow for a {settings.cutoff_hz:g}-Hz "
+            f"low-pass (needs more than {2 * settings.cutoff_hz:g} Hz)"
+        )
+    # sosfiltfilt pads each end with a few samples; runs this short give no points.
+    if t.size < 30:
         return RunPoints(run.name, empty, empty, empty, empty)
     m = float(params["mass_kg"])
     iz = float(params["yaw_inertia_kgm2"])
@@ -245,9 +250,20 @@ def identify_axles(
 
     n = len(points)
     x0 = np.concatenate([b0, np.ones(n)])
+    # Each residual depends on its axle's B and its recording's μ only: a sparse Jacobian
+    # keeps hours of driving in many recordings cheap (dense it grows with both).
+    from scipy.sparse import lil_matrix
+
+    sparsity = lil_matrix((2 * af.size, 2 + n), dtype=np.int8)
+    rows = np.arange(af.size)
+    sparsity[rows, 0] = 1
+    sparsity[rows + af.size, 1] = 1
+    sparsity[rows, 2 + run_index] = 1
+    sparsity[rows + af.size, 2 + run_index] = 1
     fit = least_squares(
         residual,
         x0,
+        jac_sparsity=sparsity,
         bounds=(
             np.concatenate([0.2 * b0, np.full(n, 0.1)]),
             np.concatenate([5.0 * b0, np.full(n, 1.5)]),

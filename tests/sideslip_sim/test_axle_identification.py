@@ -119,3 +119,15 @@ def test_a_quasi_steady_limit_uses_fewer_points(car_and_file):
     every = identify_axles(runs, true, IdentificationSettings(max_yaw_accel_radps2=math.inf))
     steady = identify_axles(runs, true, IdentificationSettings(max_yaw_accel_radps2=0.05))
     assert steady.points < every.points
+
+
+def test_a_recording_too_slow_for_the_filter_is_refused_naming_its_rate(car_and_file):
+    _car, true = car_and_file
+    run = recordings(load_vehicle("compact_rwd"), count=4)[0]
+    every = slice(None, None, 100)  # 400 Hz -> 4 Hz
+    slow = RecordedRun(
+        "slow", run.t_s[every], run.u_mps[every], run.beta_rad[every],
+        run.yaw_rate_radps[every], run.ay_mps2[every], run.ax_mps2[every], run.stl_m[every],
+    )  # fmt: skip
+    with pytest.raises(IdentificationError, match="slow: recorded at 4 Hz"):
+        identify_axles([slow], true)
