@@ -58,6 +58,7 @@ def test_a_fit_from_a_description_writes_a_tested_model_and_its_card(
     card = out.with_suffix(".md").read_text()
     assert "my_sedan" in card and "| β = 0 |" in card and "(sedan)" in card
     assert "drive layout: rwd" in card
+    assert "sideslip-identify-axles" not in card  # the paper model reads no UKF
     # Interrupted after the data: the same command picks the data up again.
     out.unlink()
     capsys.readouterr()
@@ -97,6 +98,8 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     card = out.with_suffix(".md").read_text()
     assert f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}" in card
     assert "| UKF |" in card and "(fleet_ukf_measurable)" in card
+    # A user with labelled recordings is pointed to the car's own axles.
+    assert "sideslip-identify-axles --vehicle" in card
 
 
 def _as_recorded(car) -> dict:

@@ -318,6 +318,18 @@ def _model_card(
         if args.features == "measurable"
         else f"`-p pso_lstm.model_file:={args.out}` (needs Y_v; nothing about the car)."
     )
+    recorded = (
+        "\n\nWithout Y_v the description is this model's limit: the UKF it corrects has the "
+        "fleet's typical tyres. Recordings with a reference β measure the car's own: "
+        f"`sideslip-identify-axles --vehicle {args.vehicle} --data BAGS --out my_car.ukf.yaml` "
+        "fits the axles' cornering stiffness to them. Give that file to the shipped "
+        "`fleet_ukf_measurable` (trained on true axle files), or fine-tune that model on "
+        "the recordings with it (`--observer-params`), not to this model, which learnt to "
+        "correct the described file (docs/training.md, \"Axles from the car's own "
+        'recordings").'
+        if args.features == "measurable"
+        else ""
+    )
     return f"""# Model card: {args.out.name}
 
 Fitted by `sideslip-fit --vehicle {args.vehicle} --profile {args.profile} --features
@@ -351,7 +363,7 @@ on: `{work / "test"}`.
 Simulated data only: a real car differs from every simulated one in what the
 description does not fix (tyres, bushings, sensor mounting and bias). Check the model on
 a recording of the car (`sideslip-evaluate`, with `--topic-map` for your topics) before
-relying on it, and fine-tune it there (`sideslip-train --init {args.out}`).
+relying on it, and fine-tune it there (`sideslip-train --init {args.out}`).{recorded}
 """
 
 
