@@ -142,7 +142,16 @@ def test_a_start_that_is_no_ukf_file_is_refused_naming_it(foreign_bags, tmp_path
                  "--out", str(tmp_path / "x.yaml")])  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2
-    assert f"--start {start}" in err and err.count("\n") == 1
+    assert "--start:" in err and str(start) in err and err.count("\n") == 1
+
+
+def test_a_shipped_ukf_file_is_a_start_by_name(foreign_bags, tmp_path, capsys):
+    folder, topic_map = foreign_bags
+    out = tmp_path / "car.ukf.yaml"
+    code = main(["--data", str(folder), "--topic-map", str(topic_map), "--start",
+                 "compact_rwd", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "starting from the ukf file compact_rwd (shipped)" in out.read_text()
 
 
 def test_a_nan_splits_a_recording_into_finite_stretches(make_arrays):

@@ -60,18 +60,17 @@ def recorded_runs(runs: Sequence[Run]) -> list[Any]:
 def _start_params(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """The ``ukf`` params to start from and a line saying where they came from."""
     if args.start is not None:
-        try:
-            data = yaml.safe_load(Path(args.start).read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError) as err:
-            raise CliError(f"--start {args.start}: cannot read ({err})") from None
         from sideslip_estimator.backends.base import BackendError
-        from sideslip_estimator.backends.ukf_model import UkfParams
+        from sideslip_estimator.backends.params_file import read_params_file
+        from sideslip_estimator.backends.ukf_model import SHIPPED_DIR, UkfParams
 
         try:
-            UkfParams.from_mapping(data, f"--start {args.start}")
+            # A path, or the name of a shipped file (as ukf.params_file takes it).
+            data, where = read_params_file("ukf", args.start, SHIPPED_DIR)
+            UkfParams.from_mapping(data, where)
         except BackendError as err:
-            raise CliError(str(err)) from None
-        return data, f"the ukf file {args.start}"
+            raise CliError(f"--start: {err}") from None
+        return dict(data), f"the ukf file {where}"  # type: ignore[call-overload]
     from sideslip_sim.vehicle import vehicle_record
 
     from .fit import Description
@@ -101,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
         help="the car's short description (YAML; sideslip-fit's --vehicle): start from "
         "its described car",
     )
-    start.add_argument("--start", help="a ukf params file to start from")
+    start.add_argument("--start", help="a ukf params file to start from (a path or a shipped name)")
     p.add_argument("--out", type=Path, required=True, help="the ukf params file to write")
     p.add_argument("--force", action="store_true", help="replace --out")
     p.add_argument("--topic-map", help="read bags recorded with other topics (YAML)")
