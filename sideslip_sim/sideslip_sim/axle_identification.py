@@ -36,11 +36,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-GRAVITY_MPS2 = 9.80665
+from sideslip_sim.ukf_params import AxleMagicFormula
+from sideslip_sim.vehicle import GRAVITY_MPS2
 
 
 class IdentificationError(ValueError):
@@ -76,16 +77,17 @@ class IdentificationSettings:
         transients roll, tyre lag and an inertia that is only the description's guess
         bend the points away from the steady curve.
 
-    The defaults were chosen on 12 cars of the validation fleet (5 min of each car's
-    own driving, scored on its validation runs; docs/training.md, "Axles from the car's
-    own recordings"): the UKF's mean MAE 0.162° with the described file, 0.130° with
-    every sample (2 Hz), 0.117 ± 0.001° with |ṙ| ≤ 0.1 rad/s² at 1, 2 or 4 Hz (4 Hz the
-    lowest), 0.128° with the car's true effective axles.
     point_step_s: the filtered points are taken every this many seconds [s]: the filter
         has removed what lies between, and fewer points keep the fit fast.
     min_points: fewer usable points than this in all raise IdentificationError.
     min_slip_rad: at least ``min_points`` // 10 points must reach this |α| on each axle,
         or the recordings hold too little cornering to tell a stiffness.
+
+    The defaults were chosen on 12 cars of the validation fleet (5 min of each car's
+    own driving, scored on its validation runs; docs/training.md, "Axles from the car's
+    own recordings"): the UKF's mean MAE 0.162° with the described file, 0.130° with
+    every sample (2 Hz), 0.117 ± 0.001° with |ṙ| ≤ 0.1 rad/s² at 1, 2 or 4 Hz (4 Hz the
+    lowest), 0.128° with the car's true effective axles.
     """
 
     cutoff_hz: float = 4.0
@@ -194,9 +196,10 @@ def run_points(
     return RunPoints(run.name, alpha_f, force_f, alpha_r, force_r)
 
 
-def _curve(alpha: np.ndarray, b: float, c: float, e: float, d: float, mu: np.ndarray):
-    x = b * alpha / mu
-    return mu * d * np.sin(c * np.arctan(x - e * (x - np.arctan(x))))
+def _on_road(curve: AxleMagicFormula, alpha: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """The axle's force over its load on a road of friction ``mu`` (similarity, as the UKF
+    applies it: μ·F(α/μ))."""
+    return mu * curve.force_n(alpha / mu, 1.0)
 
 
 def identify_axles(
@@ -234,17 +237,18 @@ def identify_axles(
                 f"{settings.min_points // 10} needed: record some cornering"
             )
     run_index = np.concatenate([np.full(p.alpha_front_rad.size, k) for k, p in enumerate(points)])
-    cf, ef = float(start["mf_c_front"]), float(start["mf_e_front"])
-    cr, er = float(start["mf_c_rear"]), float(start["mf_e_rear"])
-    df, dr = float(start["mu_peak_front"]), float(start["mu_peak_rear"])
-    b0 = np.array([float(start["mf_b_front"]), float(start["mf_b_rear"])])
+    keys = ("mf_b", "mf_c", "mf_e", "mu_peak")
+    front, rear = (
+        AxleMagicFormula(*(float(start[f"{k}_{axle}"]) for k in keys)) for axle in ("front", "rear")
+    )
+    b0 = np.array([front.b, rear.b])
 
     def residual(p: np.ndarray) -> np.ndarray:
         mu = p[2:][run_index]
         return np.concatenate(
             [
-                _curve(af, p[0], cf, ef, df, mu) - ff,
-                _curve(ar, p[1], cr, er, dr, mu) - fr,
+                _on_road(replace(front, b=p[0]), af, mu) - ff,
+                _on_road(replace(rear, b=p[1]), ar, mu) - fr,
             ]
         )
 
