@@ -92,3 +92,47 @@ def sim_bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     runs = single_vehicle(load_vehicle("paper_sedan"), maneuvers)
     generate(runs, out, preset_name="test", progress=False)
     return out
+
+
+@pytest.fixture(scope="session")
+def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two minutes of ``compact_rwd`` driving (12 runs) recorded as another stack would:
+    other topics and types, 100 Hz, a steering-wheel angle, the reference velocity from a
+    GNSS/INS in the east/north frame; the paper's noise on the IMU and the steering.
+    Returns the folder of bags and the topic map that reads them."""
+    import yaml
+    from foreign_bag import TOPIC_MAP, Truth, write_foreign_bag
+
+    from sideslip_sim.presets import fleet_runs
+    from sideslip_sim.simulate import simulate
+    from sideslip_sim.vehicle import load_vehicle
+
+    folder = tmp_path_factory.mktemp("foreign")
+    rng = np.random.default_rng(3)
+    car = load_vehicle("compact_rwd")
+    for i, vr in enumerate(fleet_runs([car] * 3, 12, 5)):
+        s = simulate(vr.vehicle, vr.maneuver)
+        k = slice(None, None, 4)  # 400 Hz -> 100 Hz
+        n = s.t_s[k].size
+        truth = Truth(
+            stamp_ns=10**15 + np.round(s.t_s[k] * 1e9).astype(np.int64),
+            x_v=s.u_mps[k],
+            y_v=s.v_mps[k],
+            x_a=s.ax_mps2[k] + rng.normal(0, 0.1, n),
+            y_a=s.ay_mps2[k] + rng.normal(0, 0.1, n),
+            r=s.yaw_rate_radps[k] + rng.normal(0, math.radians(0.2), n),
+            stl=s.stl_m[k] + rng.normal(0, 1e-3, n),
+            yaw=s.psi_rad[k] + 0.7,
+        )
+        write_foreign_bag(folder / f"drive{i:02d}", truth)
+    topic_map = folder / "map.yaml"
+    topic_map.write_text(yaml.safe_dump(TOPIC_MAP))
+    return folder, topic_map
+
+
+@pytest.fixture
+def compact_rwd_description(tmp_path: Path) -> Path:
+    """``compact_rwd``'s description in a temporary file."""
+    from described_cars import describe_compact_rwd
+
+    return describe_compact_rwd(tmp_path / "my_car.yaml")

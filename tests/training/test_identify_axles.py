@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +10,6 @@ import yaml
 
 from sideslip_estimator.backends.ukf_model import UkfParams
 from sideslip_sim.axle_tires import axle_tires
-from sideslip_sim.presets import fleet_runs
-from sideslip_sim.simulate import simulate
 from sideslip_sim.tire import load_tire
 from sideslip_sim.ukf_params import ukf_parameters
 from sideslip_sim.vehicle import load_vehicle
@@ -23,36 +20,6 @@ from sideslip_training.identify_axles import main
 def true_file() -> dict:
     car = load_vehicle("compact_rwd")
     return ukf_parameters(car, *axle_tires(car, load_tire(str(car.tire_path()))))
-
-
-@pytest.fixture(scope="module")
-def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """Two minutes of ``compact_rwd`` driving recorded as another stack would: other
-    topics and types, 100 Hz, a steering-wheel angle, the reference velocity from a
-    GNSS/INS in the east/north frame; the paper's noise on the IMU and the steering."""
-    from foreign_bag import TOPIC_MAP, Truth, write_foreign_bag
-
-    folder = tmp_path_factory.mktemp("foreign")
-    rng = np.random.default_rng(3)
-    car = load_vehicle("compact_rwd")
-    for i, vr in enumerate(fleet_runs([car] * 3, 12, 5)):
-        s = simulate(vr.vehicle, vr.maneuver)
-        k = slice(None, None, 4)  # 400 Hz -> 100 Hz
-        n = s.t_s[k].size
-        truth = Truth(
-            stamp_ns=10**15 + np.round(s.t_s[k] * 1e9).astype(np.int64),
-            x_v=s.u_mps[k],
-            y_v=s.v_mps[k],
-            x_a=s.ax_mps2[k] + rng.normal(0, 0.1, n),
-            y_a=s.ay_mps2[k] + rng.normal(0, 0.1, n),
-            r=s.yaw_rate_radps[k] + rng.normal(0, math.radians(0.2), n),
-            stl=s.stl_m[k] + rng.normal(0, 1e-3, n),
-            yaw=s.psi_rad[k] + 0.7,
-        )
-        write_foreign_bag(folder / f"drive{i:02d}", truth)
-    topic_map = folder / "map.yaml"
-    topic_map.write_text(yaml.safe_dump(TOPIC_MAP))
-    return folder, topic_map
 
 
 def test_another_stacks_bags_identify_the_cars_cornering_stiffness(
@@ -76,25 +43,9 @@ def test_another_stacks_bags_identify_the_cars_cornering_stiffness(
     assert "identified from 12 recording(s)" in out.read_text()
 
 
-def test_a_description_is_a_start(foreign_bags, tmp_path, capsys):
+def test_a_description_is_a_start(foreign_bags, compact_rwd_description, tmp_path, capsys):
     folder, topic_map = foreign_bags
-    car = load_vehicle("compact_rwd")
-    desc = tmp_path / "my_car.yaml"
-    desc.write_text(
-        yaml.safe_dump(
-            {
-                "name": "my_car",
-                "mass_kg": car.mass_kg,
-                "wheelbase_m": car.wheelbase_m,
-                "cg_to_front_axle_m": car.cg_to_front_axle_m,
-                "cg_height_m": car.cg_height_m,
-                "track_m": car.track_front_m,
-                "stl_per_road_wheel_angle_m_per_rad": car.stl_per_road_wheel_angle_m_per_rad,
-                "tire_rolling_radius_m": car.tire_rolling_radius_m,
-                "drive_layout": "rwd",
-            }
-        )
-    )
+    desc = compact_rwd_description
     out = tmp_path / "my_car.ukf.yaml"
     code = main(["--data", str(folder), "--topic-map", str(topic_map), "--vehicle", str(desc),
                  "--out", str(out)])  # fmt: skip

@@ -1,5 +1,7 @@
 """``sideslip-fit``: from a car's short description to a model fitted to it.
 
+(With ``--bags``, from the car's own labelled recordings instead: :mod:`.fit_bags`.)
+
 What an owner can look up (a description YAML: mass, wheelbase, CG position, CG height,
 track, steering ratio as rack travel per road-wheel radian, tyre radius; optionally
 ``drive_layout``) becomes a fleet of simulated cars around it: those values within a
@@ -43,6 +45,7 @@ import yaml
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from .cli_errors import EXIT_BAD_INPUT, CliError
+from .fit_bags import BAG_RECIPES, add_bag_arguments, check_bag_arguments
 
 SHIPPED_PAPER: Final = "fleet_lstm_paper"
 SHIPPED_MEASURABLE: Final = "fleet_ukf_measurable"
@@ -175,6 +178,11 @@ def _parser() -> argparse.ArgumentParser:
                 f"--profile {v.train_profile}"
                 for k, v in FIT_PROFILES.items()
             )
+            + ". With --bags, the car's own recordings with a reference β instead of the "
+            "simulated fleet: measurable features identify the UKF's axles on them first; "
+            "then fine-tuning ("
+            + "; ".join(f"{k}: {v.summary}" for k, v in BAG_RECIPES.items())
+            + ") and a test on every recording's last --test-fraction"
         ),
         epilog=(
             "The description (YAML): mass_kg (with usual payload), wheelbase_m, "
@@ -203,6 +211,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
     p.add_argument("--force", action="store_true", help="replace OUT and start the work over")
     p.add_argument("--quiet", action="store_true")
+    add_bag_arguments(p)
     return p
 
 
@@ -225,6 +234,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.out.exists() and not args.force:
             raise CliError(f"--out {args.out} exists; pass --force to replace it")
         desc = Description.load(args.vehicle)
+        check_bag_arguments(args)
+        if args.bags is not None:
+            from .fit_bags import run as fit_to_bags
+
+            return fit_to_bags(args, desc, SHIPPED[args.features], log, started)
         profile = FIT_PROFILES[args.profile]
         for name in ("cars", "test_runs", "max_epochs"):
             value = getattr(args, name)

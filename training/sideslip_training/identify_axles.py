@@ -71,14 +71,34 @@ def _start_params(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         except BackendError as err:
             raise CliError(f"--start: {err}") from None
         return dict(data), f"the ukf file {where}"  # type: ignore[call-overload]
+    return description_start(Path(args.vehicle))
+
+
+def description_start(path: Path) -> tuple[dict[str, Any], str]:
+    """The ``ukf`` params of the car a description (``sideslip-fit --vehicle``) stands
+    for, and a line saying so."""
     from sideslip_sim.vehicle import vehicle_record
 
     from .fit import Description
     from .physics_params import nominal_parameters
 
-    desc = Description.load(Path(args.vehicle))
+    desc = Description.load(path)
     params = nominal_parameters("ukf", vehicle_record(desc.vehicle()))
-    return params, f"the description {args.vehicle} (the fleet's typical tyres)"
+    return params, f"the description {path} (the fleet's typical tyres)"
+
+
+def identified_file_text(found: Any, recordings: int, source: str, fallback_name: str) -> str:
+    """The ukf params file of an :class:`~sideslip_sim.axle_identification.Identification`,
+    with a header saying where it came from and what changed."""
+    lines = [
+        f"# ukf parameters of {found.params.get('name', fallback_name)}: axle B identified "
+        f"from {recordings} recording(s) by sideslip-identify-axles,",
+        f"# starting from {source}.",
+        f"# Cornering stiffness over the start's: front {found.stiffness_ratio_front:.3f}, "
+        f"rear {found.stiffness_ratio_rear:.3f}; {found.points} points, residual RMS "
+        f"{found.rms_front:.3f} / {found.rms_rear:.3f} of the axle load.",
+    ]
+    return "\n".join(lines) + "\n" + yaml.safe_dump(found.params, sort_keys=False)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -154,15 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sideslip-identify-axles: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     friction = sorted(found.run_friction.values())
-    lines = [
-        f"# ukf parameters of {found.params.get('name', args.out.stem)}: axle B identified "
-        f"from {len(runs)} recording(s) by sideslip-identify-axles,",
-        f"# starting from {source}.",
-        f"# Cornering stiffness over the start's: front {found.stiffness_ratio_front:.3f}, "
-        f"rear {found.stiffness_ratio_rear:.3f}; {found.points} points, residual RMS "
-        f"{found.rms_front:.3f} / {found.rms_rear:.3f} of the axle load.",
-    ]
-    text = "\n".join(lines) + "\n" + yaml.safe_dump(found.params, sort_keys=False)
+    text = identified_file_text(found, len(runs), source, args.out.stem)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text, encoding="utf-8")
     print(

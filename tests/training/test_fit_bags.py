@@ -1,0 +1,143 @@
+"""sideslip-fit --bags: the car's own recordings (another stack's, 100 Hz) to a model."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from sideslip_estimator.backends.ukf_model import UkfParams
+from sideslip_training.fit import main
+
+
+@pytest.fixture(scope="module")
+def fitted(foreign_bags, tmp_path_factory):
+    """One measurable fit on the foreign bags (2 epochs: a real, small training)."""
+    from described_cars import describe_compact_rwd
+
+    folder, topic_map = foreign_bags
+    tmp = tmp_path_factory.mktemp("fit_bags")
+    desc = describe_compact_rwd(tmp / "my_car.yaml")
+    out = tmp / "my_car.safetensors"
+    code = main(["--vehicle", str(desc), "--bags", str(folder), "--topic-map", str(topic_map),
+                 "--features", "measurable", "--out", str(out), "--max-epochs", "2",
+                 "--quiet"])  # fmt: skip
+    return code, out
+
+
+def _pooled(out) -> dict[str, float]:
+    report = json.loads((out.with_suffix(".fit") / "report" / "metrics.json").read_text())
+    return {r["estimator"]: r["mae"] for r in report["pooled"]}, report["models"]
+
+
+def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitted):
+    code, out = fitted
+    assert code == 0
+    assert out.exists()
+    ukf = UkfParams.load(str(out.with_suffix(".ukf.yaml")))
+    assert ukf.name == "my_car"
+    card = out.with_suffix(".md").read_text()
+    deploy = f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}"
+    rows = ("UKF (described axles)", "UKF (identified axles)", "β = 0", "(my_car)")
+    for text in (*rows, "(fleet_ukf_measurable)", deploy):
+        assert text in card
+    # The kinematic baselines read the reference velocity: not a sensor of this car.
+    assert "Kinematic" not in card
+
+
+def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(fitted):
+    """On the recordings' test part (never used to identify or train): compact_rwd's
+    tyres are far from the fleet's typical ones its description implies, so the
+    identified file must beat the described one clearly; the fine-tuned model must not
+    be worse than the shipped one given the same file."""
+    _, out = fitted
+    mae, models = _pooled(out)
+    assert mae["UKF (identified axles)"] < 0.6 * mae["UKF (described axles)"]
+    assert mae[models["fitted"]] <= mae[models["shipped"]]
+    assert mae[models["shipped"]] < mae["UKF (identified axles)"]
+
+
+def test_the_test_part_is_each_recordings_last_share(fitted, foreign_bags):
+    """30 % of every recording by default: the test rows count that share of samples
+    at the model's 400 Hz, less the first window of each."""
+    _, out = fitted
+    report = json.loads((out.with_suffix(".fit") / "report" / "metrics.json").read_text())
+    assert report["test_fraction"] == 0.3
+    table = (out.with_suffix(".fit") / "report" / "table.md").read_text()
+    assert table.count("@test") >= 12
+
+
+def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
+    foreign_bags, compact_rwd_description, tmp_path, capsys
+):
+    folder, topic_map = foreign_bags
+    out = tmp_path / "paper.safetensors"
+    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder),
+                 "--topic-map", str(topic_map), "--out", str(out), "--max-epochs", "1",
+                 "--test-fraction", "0.25", "--quiet"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert not out.with_suffix(".ukf.yaml").exists()
+    card = out.with_suffix(".md").read_text()
+    assert "(fleet_lstm_paper)" in card and "Kinematic (20-step mean)" in card
+    assert "UKF" not in card
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--test-fraction", "1.5"], "--test-fraction must be in (0, 1)"),
+        (["--cars", "4"], "--cars is for simulated fits"),
+    ],
+)
+def test_options_that_do_not_fit_recordings_are_refused(
+    foreign_bags, compact_rwd_description, tmp_path, capsys, extra, message
+):
+    folder, _ = foreign_bags
+    out = tmp_path / "x.safetensors"
+    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder), "--out",
+                 str(out), *extra])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("sideslip-fit: error: ") and message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_a_topic_map_without_bags_is_refused(compact_rwd_description, tmp_path, capsys):
+    code = main(["--vehicle", str(compact_rwd_description), "--topic-map", "map.yaml",
+                 "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
+    assert code == 2
+    assert "--topic-map needs --bags" in capsys.readouterr().err
+
+
+def test_a_test_part_shorter_than_the_window_is_refused_before_training(
+    foreign_bags, compact_rwd_description, tmp_path, capsys
+):
+    """One recording of a few seconds and 1 % for the test: no window fits in it."""
+    folder, topic_map = foreign_bags
+    bags = tmp_path / "bags"
+    shutil.copytree(next(p for p in sorted(folder.iterdir()) if p.is_dir()), bags / "one")
+    out = tmp_path / "x.safetensors"
+    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(bags),
+                 "--topic-map", str(topic_map), "--out", str(out), "--test-fraction", "0.01",
+                 "--quiet"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "shorter than the model's 0.25-s window" in err and err.count("\n") == 1
+    assert not (tmp_path / "x.fit" / "train-run").exists()
+
+
+def test_too_little_driving_to_identify_the_axles_is_refused(
+    foreign_bags, compact_rwd_description, tmp_path, capsys
+):
+    folder, topic_map = foreign_bags
+    bags = tmp_path / "bags"
+    shutil.copytree(next(p for p in sorted(folder.iterdir()) if p.is_dir()), bags / "one")
+    out = tmp_path / "x.safetensors"
+    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(bags),
+                 "--topic-map", str(topic_map), "--features", "measurable", "--out", str(out),
+                 "--quiet"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "usable points in 1 recording(s)" in err and err.count("\n") == 1
+    assert not out.exists()
