@@ -1,0 +1,129 @@
+"""``sideslip-fit --bags`` on validation-fleet cars: the one command a user with labelled
+recordings runs, scored on the card's own test part and on other drives of the car.
+
+For each chosen car of the validation fleet (``sideslip-generate --preset fleet --count
+100 --seed 2``, never trained on; its bags in ``--val-data``): ``--minutes`` of its own
+fleet-style driving (seed 4000 + car index, the seeds the axle identification was chosen
+on), its description, then
+
+    sideslip-fit --vehicle DESC --bags OWN --features measurable --out CAR.safetensors
+
+and, beside the card's figures (each recording's last 30 %), the fitted model, the shipped
+``fleet_ukf_measurable`` and the UKF with the identified and the described file on the
+car's four validation-fleet runs (other manoeuvres, roads and speeds: new drives).
+Writes ``OUT/summary.json`` and prints a markdown table.
+
+    python training/scripts/fit_bags_check.py --cars 0 1 2 3 --out data/fit-bags-check
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from sideslip_sim.fleet import sample_fleet
+from sideslip_sim.generate import generate, prepare_output
+from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
+from sideslip_training.evaluate_cli import main as evaluate_main
+from sideslip_training.fit import main as fit_main
+from sideslip_training.init_model import resolve
+
+sys.path.insert(0, str(Path(__file__).parent))
+from held_out_fit import description
+
+VAL_SEED = 2
+VAL_CARS = 25
+OWN_SEED = 4000
+
+
+def own_runs(car, minutes: float, seed: int) -> list[VehicleRun]:
+    """At least ``minutes`` of fleet-style runs of ``car`` itself."""
+    cars = int(minutes * 60 / (6.0 * FLEET_RUNS_PER_CAR)) + 1  # runs last 6-12 s
+    out, total = [], 0.0
+    for i, r in enumerate(fleet_runs([car] * cars, FLEET_RUNS_PER_CAR * cars, seed)):
+        if total >= minutes * 60.0:
+            break
+        name = f"own{i:03d}_{r.maneuver.family}"
+        out.append(VehicleRun(r.vehicle, dataclasses.replace(r.maneuver, name=name)))
+        total += r.maneuver.duration_s
+    return out
+
+
+def pooled(report: Path) -> dict[str, float]:
+    summary = json.loads((report / "metrics.json").read_text())
+    return {r["estimator"]: r["mae"] for r in summary["pooled"] if r["mae"] is not None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cars", type=int, nargs="+", required=True, help="validation car indices")
+    p.add_argument("--minutes", type=float, default=7.5, help="own driving per car")
+    p.add_argument("--val-data", type=Path, default=Path("data/fleet-val"))
+    p.add_argument("--out", type=Path, default=Path("data/fit-bags-check"))
+    p.add_argument("--fit-args", default="", help="more sideslip-fit options")
+    args = p.parse_args(argv)
+    cars = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
+    results = {}
+    for k in args.cars:
+        car = cars[k]
+        work = args.out / car.name
+        own = work / "own"
+        if not (own / "index.json").exists():
+            prepare_output(own, force=True)
+            generate(own_runs(car, args.minutes, OWN_SEED + k), own, seed=OWN_SEED + k,
+                     preset_name="own driving", jobs=1, progress=False)  # fmt: skip
+        desc = work / "description.yaml"
+        desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
+        out = work / "fitted.safetensors"
+        started = time.perf_counter()
+        if not out.exists():
+            code = fit_main(["--vehicle", str(desc), "--bags", str(own), "--features",
+                             "measurable", "--out", str(out), "--quiet",
+                             *args.fit_args.split()])  # fmt: skip
+            if code != 0:
+                return code
+        seconds = time.perf_counter() - started
+        card = pooled(work / "fitted.fit" / "report")
+        ukf = out.with_suffix(".ukf.yaml")
+        described = work / "fitted.fit" / "described.ukf.yaml"
+        val_bags = sorted(str(b) for b in args.val_data.glob(f"{car.name}_*"))
+        files = ["--vehicle", str(desc), "--observer-params", str(ukf), "--car", "given"]
+        scores = {}
+        for tag, ukf_params in (("identified", ukf), ("described", described)):
+            report = work / f"new-drives-{tag}"
+            code = evaluate_main(
+                ["--model", str(out), str(resolve("fleet_ukf_measurable")), "--data", *val_bags,
+                 "--out", str(report), "--force", "--ukf-params", str(ukf_params), *files]
+            )  # fmt: skip
+            if code != 0:
+                return code
+            scores[tag] = pooled(report)
+        new = scores["identified"]
+        results[car.name] = {
+            "seconds": seconds,
+            "card": card,
+            "new_drives": {**new, "UKF (described axles)": scores["described"]["UKF"]},
+        }
+    (args.out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
+    print("| car | where | fitted | shipped | UKF identified | UKF described |")
+    print("|---|---|---|---|---|---|")
+    for name, r in results.items():
+        for where in ("card", "new_drives"):
+            m = r[where]
+            fitted = next(v for k, v in m.items() if k.endswith("(fitted)"))
+            shipped = next(v for k, v in m.items() if k.endswith("(fleet_ukf_measurable)"))
+            ident = m.get("UKF (identified axles)", m.get("UKF"))
+            print(f"| {name} | {where} | {fitted:.4f} | {shipped:.4f} | {ident:.4f} | "
+                  f"{m['UKF (described axles)']:.4f} |")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
