@@ -81,3 +81,46 @@ def test_the_cli_writes_the_model_with_its_uncertainty_and_evaluate_scores_it(
     assert "--force" in capsys.readouterr().err
     bad = ["--model", str(model), "--data", str(sim_bag_dir), "--out", str(tmp_path / "x")]
     assert main([*bad, "--coverage", "1.5"]) == 2
+
+
+def test_scale_only_keeps_the_fleets_terms_and_sets_one_cars_error_level(
+    foreign_bags, compact_rwd_description: Path, tmp_path: Path, capsys
+) -> None:
+    """One car's own recordings (another stack's bags, no car recorded) rescale the
+    shipped measurable model's σ: same coefficients, another scale, and on those
+    recordings the asked share inside."""
+    from importlib import resources
+
+    from sideslip_training.init_model import resolve
+
+    folder, topic_map = foreign_bags
+    ukf = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
+    out = tmp_path / "mine.safetensors"
+    code = main(["--model", "fleet_ukf_measurable", "--data", str(folder), "--topic-map",
+                 str(topic_map), "--vehicle", str(compact_rwd_description), "--observer-params",
+                 str(ukf), "--car", "given", "--scale-only", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    shipped = Uncertainty.from_dict(read_artifact(resolve("fleet_ukf_measurable"))[1].uncertainty)
+    _, meta = read_artifact(out)
+    mine = Uncertainty.from_dict(meta.uncertainty)
+    assert mine.coefficients == pytest.approx(shipped.coefficients, rel=1e-12)
+    assert abs(mine.scale / shipped.scale - 1.0) > 0.05
+    figures = meta.metrics["interval_calibration"]
+    assert figures["scale_only"] == 1.0
+    assert figures["coverage_scale_half"] == pytest.approx(0.95, abs=0.005)
+
+
+def test_scale_only_needs_a_model_with_sigma_terms(sim_bag_dir: Path, tmp_path: Path, capsys):
+    code = main(["--model", "pso_lstm_paper", "--data", str(sim_bag_dir), "--scale-only",
+                 "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--scale-only keeps the model's σ terms, but this model has none" in err
+    assert err.splitlines()[-1].startswith("sideslip-calibrate: error:")
+
+
+def test_car_given_without_files_is_refused(sim_bag_dir: Path, tmp_path: Path, capsys):
+    code = main(["--model", "fleet_ukf_measurable", "--data", str(sim_bag_dir), "--car",
+                 "given", "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
+    assert code == 2
+    assert "--car given needs --vehicle and/or --observer-params" in capsys.readouterr().err

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -24,12 +25,14 @@ import numpy.typing as npt
 from sideslip_msgs_py.artifact import ArtifactError, read_artifact, write_artifact
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.uncertainty import TERMS, Uncertainty, terms
+from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from .cli_errors import EXIT_BAD_INPUT
 from .dataset import DatasetError, Run, load_runs
 from .evaluate import predict_run
 from .export import load_model
 from .init_model import InitError, resolve
+from .inputs import add_car_argument
 from .splits import split_runs
 
 FloatArray = npt.NDArray[np.float64]
@@ -47,12 +50,14 @@ class Errors:
     run: npt.NDArray[np.int64]
 
     @classmethod
-    def of_runs(cls, runs: Sequence[Run], model, meta) -> Errors:  # type: ignore[no-untyped-def]
-        """The model's errors on ``runs`` (samples with a full window and a finite β̂)."""
+    def of_runs(cls, runs: Sequence[Run], model, meta, **car: Any) -> Errors:  # type: ignore[no-untyped-def]
+        """The model's errors on ``runs`` (samples with a full window and a finite β̂);
+        ``car``: :func:`~.evaluate.predict_run`'s ``vehicle``, ``observer_params_file``
+        and ``car``, for bags that record no car or to give every run the same files."""
         w = meta.window_steps
         parts: dict[str, list[FloatArray]] = {k: [] for k in ("err", "v", "ay", "r", "run")}
         for i, run in enumerate(runs):
-            est = predict_run(model, meta, run)
+            est = predict_run(model, meta, run, **car)
             s = run.samples
             ref = s.beta_rad()[w - 1 :]
             ok = np.isfinite(est) & np.isfinite(ref)
@@ -134,14 +139,33 @@ def calibrate(
     *,
     coverage: float = 0.95,
     seed: int = 0,  # type: ignore[no-untyped-def]
+    scale_only: bool = False,
+    car: dict[str, Any] | None = None,
 ) -> tuple[Uncertainty, dict[str, float]]:
-    """The uncertainty model for ``model`` from validation ``runs`` and its figures."""
-    fit_runs, scale_runs = split_runs(runs, 0.5, seed)
-    fit_errors = Errors.of_runs(fit_runs, model, meta)
-    scale_errors = Errors.of_runs(scale_runs, model, meta)
-    if len(fit_errors) < 100 or len(scale_errors) < 100:
-        raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
-    coefficients = fit_coefficients(fit_errors)
+    """The uncertainty model for ``model`` from validation ``runs`` and its figures.
+
+    ``scale_only``: keep the coefficients of the model's own uncertainty (fitted on a
+    fleet) and fix only the conformal scale, on all of ``runs`` (one car's recordings:
+    its error level, from minutes of data); ``car``: see :meth:`Errors.of_runs`."""
+    car = car or {}
+    if scale_only:
+        if meta.uncertainty is None:
+            raise DatasetError(
+                "--scale-only keeps the model's σ terms, but this model has none: "
+                "calibrate it on validation bags first"
+            )
+        coefficients = tuple(Uncertainty.from_dict(meta.uncertainty).coefficients)
+        fit_runs, scale_runs = list(runs), list(runs)
+        fit_errors = scale_errors = Errors.of_runs(runs, model, meta, **car)
+        if len(scale_errors) < 100:
+            raise DatasetError("too few scored samples to calibrate (fewer than 100)")
+    else:
+        fit_runs, scale_runs = split_runs(runs, 0.5, seed)
+        fit_errors = Errors.of_runs(fit_runs, model, meta, **car)
+        scale_errors = Errors.of_runs(scale_runs, model, meta, **car)
+        if len(fit_errors) < 100 or len(scale_errors) < 100:
+            raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
+        coefficients = fit_coefficients(fit_errors)
     unc = Uncertainty(coefficients, conformal_scale(scale_errors, coefficients, coverage), coverage)
     pooled, per_run = coverage_of(scale_errors, unc)
     const = math.sqrt(float(np.mean(fit_errors.err**2)))
@@ -151,6 +175,7 @@ def calibrate(
     )
     report = {
         "coverage_asked": coverage,
+        "scale_only": float(scale_only),
         "fit_bags": float(len({r.bag for r in fit_runs})),
         "scale_bags": float(len({r.bag for r in scale_runs})),
         "coverage_scale_half": pooled,
@@ -178,6 +203,27 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--coverage", type=float, default=0.95, help="share inside ±z·σ (0.95)")
     p.add_argument("--seed", type=int, default=0, help="which bags fit and which scale")
     p.add_argument("--topic-map", type=Path, metavar="FILE", help="see sideslip-train")
+    p.add_argument(
+        "--scale-only",
+        action="store_true",
+        help="keep the model's σ terms (its calibration on a fleet) and fit only their "
+        "scale, on all of --data: one car's own recordings (a few minutes are enough) give "
+        "the σ that car's error level",
+    )
+    p.add_argument(
+        "--vehicle",
+        type=Path,
+        help="the car's nominal parameters (YAML) for bags that record none (see "
+        "sideslip-evaluate)",
+    )
+    p.add_argument(
+        "--observer-params",
+        type=Path,
+        metavar="UKF.yaml",
+        help="the car's ukf params file for bags that record none, for models that read "
+        "the UKF observer",
+    )
+    add_car_argument(p)
     p.add_argument("--force", action="store_true", help="replace --out")
     return p
 
@@ -195,8 +241,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
         runs, report = load_runs(args.data, step_s=meta.dt_s, topic_map=topic_map)
         print(str(report), file=sys.stderr)
-        unc, figures = calibrate(runs, model, meta, coverage=args.coverage, seed=args.seed)
-    except (DatasetError, ArtifactError, InitError, TopicMapError, OSError) as err:
+        if args.car == "given" and not (args.vehicle or args.observer_params):
+            raise DatasetError("--car given needs --vehicle and/or --observer-params")
+        car = {
+            "vehicle": VehicleDescription.load(args.vehicle) if args.vehicle else None,
+            "observer_params_file": str(args.observer_params) if args.observer_params else None,
+            "car": args.car,
+        }
+        unc, figures = calibrate(
+            runs,
+            model,
+            meta,
+            coverage=args.coverage,
+            seed=args.seed,
+            scale_only=args.scale_only,
+            car=car,
+        )
+    except (
+        DatasetError,
+        ArtifactError,
+        InitError,
+        TopicMapError,
+        OSError,
+        VehicleDescriptionError,
+    ) as err:
         print(f"sideslip-calibrate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     out_meta = replace(
