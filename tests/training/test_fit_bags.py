@@ -110,13 +110,20 @@ def test_a_topic_map_without_bags_is_refused(compact_rwd_description, tmp_path, 
     assert "--topic-map needs --bags" in capsys.readouterr().err
 
 
-def test_a_test_part_shorter_than_the_window_is_refused_before_training(
-    foreign_bags, compact_rwd_description, tmp_path, capsys
-):
-    """One recording of a few seconds and 1 % for the test: no window fits in it."""
+@pytest.fixture
+def one_recording(foreign_bags, tmp_path) -> tuple:
+    """A folder with one of the foreign recordings (a few seconds), and the topic map."""
     folder, topic_map = foreign_bags
     bags = tmp_path / "bags"
     shutil.copytree(next(p for p in sorted(folder.iterdir()) if p.is_dir()), bags / "one")
+    return bags, topic_map
+
+
+def test_a_test_part_shorter_than_the_window_is_refused_before_training(
+    one_recording, compact_rwd_description, tmp_path, capsys
+):
+    """One recording of a few seconds and 1 % for the test: no window fits in it."""
+    bags, topic_map = one_recording
     out = tmp_path / "x.safetensors"
     code = main(["--vehicle", str(compact_rwd_description), "--bags", str(bags),
                  "--topic-map", str(topic_map), "--out", str(out), "--test-fraction", "0.01",
@@ -128,11 +135,9 @@ def test_a_test_part_shorter_than_the_window_is_refused_before_training(
 
 
 def test_too_little_driving_to_identify_the_axles_is_refused(
-    foreign_bags, compact_rwd_description, tmp_path, capsys
+    one_recording, compact_rwd_description, tmp_path, capsys
 ):
-    folder, topic_map = foreign_bags
-    bags = tmp_path / "bags"
-    shutil.copytree(next(p for p in sorted(folder.iterdir()) if p.is_dir()), bags / "one")
+    bags, topic_map = one_recording
     out = tmp_path / "x.safetensors"
     code = main(["--vehicle", str(compact_rwd_description), "--bags", str(bags),
                  "--topic-map", str(topic_map), "--features", "measurable", "--out", str(out),

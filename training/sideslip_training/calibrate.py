@@ -32,7 +32,7 @@ from .dataset import DatasetError, Run, load_runs
 from .evaluate import predict_run
 from .export import load_model
 from .init_model import InitError, resolve
-from .inputs import add_car_argument
+from .inputs import add_car_files_arguments
 from .splits import split_runs
 
 FloatArray = npt.NDArray[np.float64]
@@ -210,20 +210,7 @@ def _parser() -> argparse.ArgumentParser:
         "scale, on all of --data: one car's own recordings (a few minutes are enough) give "
         "the σ that car's error level",
     )
-    p.add_argument(
-        "--vehicle",
-        type=Path,
-        help="the car's nominal parameters (YAML) for bags that record none (see "
-        "sideslip-evaluate)",
-    )
-    p.add_argument(
-        "--observer-params",
-        type=Path,
-        metavar="UKF.yaml",
-        help="the car's ukf params file for bags that record none, for models that read "
-        "the UKF observer",
-    )
-    add_car_argument(p)
+    add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")
     return p
 

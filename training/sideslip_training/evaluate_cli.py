@@ -22,7 +22,7 @@ from .cli_errors import EXIT_BAD_INPUT, CliError
 from .config import DT_S, WINDOW_STEPS
 from .dataset import DatasetError, load_runs
 from .export import load_model
-from .inputs import add_car_argument
+from .inputs import add_car_files_arguments
 
 
 def _evaluate_parser() -> argparse.ArgumentParser:
@@ -50,20 +50,7 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="write into an existing --out")
     p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
     p.add_argument("--title", default="", help="heading of the markdown table")
-    p.add_argument(
-        "--vehicle",
-        type=Path,
-        help="nominal parameters (YAML) of the car of bags that record none, for models "
-        "that read the car",
-    )
-    p.add_argument(
-        "--observer-params",
-        type=Path,
-        metavar="UKF.yaml",
-        help="the car's ukf params file for bags that record none, for models that read "
-        "the UKF observer",
-    )
-    add_car_argument(p)
+    add_car_files_arguments(p)
     p.add_argument(
         "--single-track-params",
         metavar="FILE",

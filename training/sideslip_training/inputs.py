@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
@@ -49,6 +50,25 @@ def add_car_argument(parser: argparse.ArgumentParser) -> None:
         help="where the car parameters of the UKF observer and the vehicle inputs come from "
         "for bags that record their car: " + "; ".join(f"{k}: {v}" for k, v in CAR_SOURCES.items()),
     )
+
+
+def add_car_files_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--vehicle``, ``--observer-params`` and ``--car``: the car a scored model is
+    given, as sideslip-evaluate and sideslip-calibrate take them."""
+    parser.add_argument(
+        "--vehicle",
+        type=Path,
+        help="nominal parameters (YAML) of the car of bags that record none, for models "
+        "that read the car",
+    )
+    parser.add_argument(
+        "--observer-params",
+        type=Path,
+        metavar="UKF.yaml",
+        help="the car's ukf params file for bags that record none, for models that read "
+        "the UKF observer",
+    )
+    add_car_argument(parser)
 
 
 @dataclass(frozen=True)
