@@ -207,8 +207,9 @@ def _parser() -> argparse.ArgumentParser:
         "--scale-only",
         action="store_true",
         help="keep the model's σ terms (its calibration on a fleet) and fit only their "
-        "scale, on all of --data: one car's own recordings (a few minutes are enough) give "
-        "the σ that car's error level",
+        "scale, on all of --data (e.g. one car's own recordings; on validation cars this "
+        "did not bring coverage on the car's other drives nearer the asked share: "
+        "docs/evaluation/intervals)",
     )
     add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")

@@ -205,6 +205,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--cars", type=int, help="override the profile's number of cars")
     p.add_argument("--test-runs", type=int, help="override the profile's test runs")
     p.add_argument("--max-epochs", type=int, help="override the profile's cap on epochs")
+    p.add_argument(
+        "--learning-rate", type=float, help="override the fine-tuning's learning rate (1e-3)"
+    )
     p.add_argument("--work", type=Path, help="data and reports (default: OUT + .fit)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=2, help="simulation processes")
@@ -287,6 +290,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     common += ["--mirror", "no"]
     if profile.max_epochs is not None:
         common += ["--max-epochs", str(profile.max_epochs)]
+    if args.learning_rate is not None:
+        common += ["--learning-rate", repr(args.learning_rate)]
     code = train_main([*common, "--init", SHIPPED[args.features], *car_files])
     if code != 0:
         return code

@@ -247,6 +247,7 @@ def run(args: argparse.Namespace, desc: Any, shipped: str, log: Callable, starte
         train += ["--device", args.device, "--seed", str(args.seed)]
         train += ["--topic-map", str(args.topic_map)] if args.topic_map else []
         train += ["--max-epochs", str(args.max_epochs)] if args.max_epochs else []
+        train += ["--learning-rate", repr(args.learning_rate)] if args.learning_rate else []
         train += ["--quiet"] if args.quiet else []
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
