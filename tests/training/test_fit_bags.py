@@ -75,8 +75,10 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     out = tmp_path / "paper.safetensors"
     code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder),
                  "--topic-map", str(topic_map), "--out", str(out), "--max-epochs", "1",
-                 "--test-fraction", "0.25", "--quiet"])  # fmt: skip
+                 "--test-fraction", "0.25", "--learning-rate", "0.0005", "--quiet"])  # fmt: skip
     assert code == 0, capsys.readouterr().err
+    config = json.loads((tmp_path / "paper.fit" / "train-run" / "config.json").read_text())
+    assert config["args"]["learning_rate"] == 0.0005 and config["args"]["test_fraction"] == 0.25
     assert not out.with_suffix(".ukf.yaml").exists()
     card = out.with_suffix(".md").read_text()
     assert "(fleet_lstm_paper)" in card and "Kinematic (20-step mean)" in card
