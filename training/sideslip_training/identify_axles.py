@@ -79,7 +79,7 @@ def description_start(path: Path) -> tuple[dict[str, Any], str]:
     for, and a line saying so."""
     from sideslip_sim.vehicle import vehicle_record
 
-    from .fit import Description
+    from .car_description import Description
     from .physics_params import nominal_parameters
 
     desc = Description.load(path)
