@@ -19,7 +19,6 @@ Writes ``OUT/summary.json`` and prints a markdown table.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -30,30 +29,17 @@ import yaml
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
-from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import main as fit_main
 from sideslip_training.init_model import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
+from held_out_curve import first_minutes, own_runs
 from held_out_fit import description
 
 VAL_SEED = 2
 VAL_CARS = 25
 OWN_SEED = 4000
-
-
-def own_runs(car, minutes: float, seed: int) -> list[VehicleRun]:
-    """At least ``minutes`` of fleet-style runs of ``car`` itself."""
-    cars = int(minutes * 60 / (6.0 * FLEET_RUNS_PER_CAR)) + 1  # runs last 6-12 s
-    out, total = [], 0.0
-    for i, r in enumerate(fleet_runs([car] * cars, FLEET_RUNS_PER_CAR * cars, seed)):
-        if total >= minutes * 60.0:
-            break
-        name = f"own{i:03d}_{r.maneuver.family}"
-        out.append(VehicleRun(r.vehicle, dataclasses.replace(r.maneuver, name=name)))
-        total += r.maneuver.duration_s
-    return out
 
 
 def pooled(report: Path) -> dict[str, float]:
@@ -76,8 +62,10 @@ def main(argv: list[str] | None = None) -> int:
         work = args.out / car.name
         own = work / "own"
         if not (own / "index.json").exists():
+            runs = own_runs(car, args.minutes, OWN_SEED + k)
+            runs = runs[: len(first_minutes(runs, args.minutes))]
             prepare_output(own, force=True)
-            generate(own_runs(car, args.minutes, OWN_SEED + k), own, seed=OWN_SEED + k,
+            generate(runs, own, seed=OWN_SEED + k,
                      preset_name="own driving", jobs=1, progress=False)  # fmt: skip
         desc = work / "description.yaml"
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))

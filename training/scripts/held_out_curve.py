@@ -39,6 +39,7 @@ from pathlib import Path
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_vehicles
 from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
+from sideslip_sim.vehicle import VehicleParams
 from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import SHIPPED_PAPER
@@ -61,7 +62,12 @@ BASES = {
 
 def car_runs(name: str, minutes: float, seed: int) -> list[VehicleRun]:
     """Fleet-style runs of the held-out car ``name``, at least ``minutes`` of driving."""
-    car = held_out_vehicles()[name]
+    return own_runs(held_out_vehicles()[name], minutes, seed)
+
+
+def own_runs(car: VehicleParams, minutes: float, seed: int) -> list[VehicleRun]:
+    """Fleet-style runs of ``car`` itself (named ``ownNNN_family``), at least ``minutes``
+    of driving."""
     cars = int(minutes * 60 / (6.0 * FLEET_RUNS_PER_CAR)) + 1  # runs last 6-12 s
     runs = fleet_runs([car] * cars, FLEET_RUNS_PER_CAR * cars, seed)
     return [

@@ -13,7 +13,7 @@ import csv
 import io
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +45,14 @@ class Metrics:
     r2: float
     n: int
     excluded: int = 0
+
+
+def metrics_json(m: Metrics) -> dict[str, float | int | None]:
+    """``m`` for strict JSON: an undefined figure (R² of a straight run) is None."""
+    return {
+        k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+        for k, v in asdict(m).items()
+    }
 
 
 def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:

@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Sequence
-from dataclasses import asdict
 from pathlib import Path
 
 from sideslip_msgs_py.artifact import ArtifactError
@@ -76,6 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .evaluate import (
         FilterError,
         evaluate_runs,
+        metrics_json,
         model_label,
         outside_training_cars,
         pooled,
@@ -179,12 +178,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         for i, t in enumerate(tr for tr in traces if tr.sigma_rad is not None):
             plot_band(t, args.out / f"band_{t.scenario}_{i}.png")
 
-        def strict(m) -> dict:  # strict JSON: an undefined metric (R² of a straight) is null
-            return {
-                k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in asdict(m).items()
-            }
-
         summary = {
             "models": [str(p) for p in args.model],
             "data": args.data,
@@ -194,12 +187,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 {
                     "scenario": t.scenario,
                     "estimator": t.estimator,
-                    **strict(t.metrics),
+                    **metrics_json(t.metrics),
                     **({} if t.sigma_rad is None else {"coverage_95": t.coverage}),
                 }
                 for t in traces
             ],
-            "pooled": [{"estimator": n, **strict(m)} for n, m in pooled(traces).items()],
+            "pooled": [{"estimator": n, **metrics_json(m)} for n, m in pooled(traces).items()],
         }
         (args.out / "metrics.json").write_text(
             json.dumps(summary, indent=2, allow_nan=False) + "\n"

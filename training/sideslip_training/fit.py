@@ -41,7 +41,7 @@ from typing import Any, Final
 
 from .car_description import Description
 from .cli_errors import EXIT_BAD_INPUT, CliError
-from .fit_bags import BAG_RECIPES, add_bag_arguments, check_bag_arguments
+from .fit_bags import BAG_RECIPES, add_bag_arguments, check_bag_arguments, stage
 
 SHIPPED_PAPER: Final = "fleet_lstm_paper"
 SHIPPED_MEASURABLE: Final = "fleet_ukf_measurable"
@@ -144,10 +144,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _stage(log, started: float, what: str) -> None:
-    log(f"[{time.perf_counter() - started:6.0f} s] {what}")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     from sideslip_sim.generate import generate, prepare_output
 
@@ -163,11 +159,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.out.exists() and not args.force:
             raise CliError(f"--out {args.out} exists; pass --force to replace it")
         desc = Description.load(args.vehicle)
-        check_bag_arguments(args)
+        test_fraction = check_bag_arguments(args)
         if args.bags is not None:
             from .fit_bags import run as fit_to_bags
 
-            return fit_to_bags(args, desc, SHIPPED[args.features], log, started)
+            return fit_to_bags(args, desc, SHIPPED[args.features], test_fraction, log, started)
         profile = FIT_PROFILES[args.profile]
         for name in ("cars", "test_runs", "max_epochs"):
             value = getattr(args, name)
@@ -182,9 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.force or not reuse:
             shutil.rmtree(work, ignore_errors=True)
         work.mkdir(parents=True, exist_ok=True)
-        _stage(
-            log, started, f"fleet around {desc.name}: {profile.cars} cars, one more for the test"
-        )
+        stage(log, started, f"fleet around {desc.name}: {profile.cars} cars, one more for the test")
         train_runs, test_runs = plan_runs(desc, profile, args.seed)
         car_files: list[str] = []
         filters: list[str] = []
@@ -200,14 +194,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     for folder, runs in (("train", train_runs), ("test", test_runs)):
         out = work / folder
         if reuse and (out / "index.json").exists():
-            _stage(log, started, f"{folder}: {len(runs)} runs already generated (resumed)")
+            stage(log, started, f"{folder}: {len(runs)} runs already generated (resumed)")
             continue
-        _stage(log, started, f"{folder}: simulating {len(runs)} runs")
+        stage(log, started, f"{folder}: simulating {len(runs)} runs")
         prepare_output(out, force=True)
         generate(runs, out, seed=args.seed, preset_name=f"fit-{folder}", jobs=args.jobs,
                  progress=not args.quiet)  # fmt: skip
     stamp.write_text(json.dumps({"key": key, "vehicle": str(args.vehicle)}) + "\n")
-    _stage(log, started, "training")
+    stage(log, started, "training")
     common = ["--data", str(work / "train"), "--out", str(args.out), "--force"]
     common += ["--profile", profile.train_profile, "--device", args.device]
     common += ["--seed", str(args.seed), *(["--quiet"] if args.quiet else [])]
@@ -221,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     code = train_main([*common, "--init", SHIPPED[args.features], *car_files])
     if code != 0:
         return code
-    _stage(log, started, "evaluating on the test car")
+    stage(log, started, "evaluating on the test car")
     from .init_model import resolve
 
     models = [str(args.out), str(resolve(SHIPPED[args.features]))]
@@ -235,7 +229,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     card = _model_card(desc, args, profile, work, report, time.perf_counter() - started)
     args.out.with_suffix(".md").write_text(card)
-    _stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
+    stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0
 
 

@@ -28,7 +28,7 @@ import math
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -213,19 +213,26 @@ def scored_traces(
     return traces, labels
 
 
-def run(args: argparse.Namespace, desc: Any, shipped: str, log: Callable, started: float) -> int:
-    """The recordings path of ``sideslip-fit`` (see module); its exit code."""
+def run(
+    args: argparse.Namespace,
+    desc: Any,
+    shipped: str,
+    fraction: float,
+    log: Callable,
+    started: float,
+) -> int:
+    """The recordings path of ``sideslip-fit`` (see module), with the test ``fraction``
+    :func:`check_bag_arguments` gave; its exit code."""
     from sideslip_msgs_py.topic_map import TopicMapError
     from sideslip_sim.axle_identification import IdentificationError
 
     from .cli import train_main
     from .cli_errors import EXIT_BAD_INPUT
     from .dataset import DatasetError
-    from .evaluate import FilterError, pooled, table_markdown
+    from .evaluate import FilterError, metrics_json, pooled, table_markdown
     from .export import load_model
     from .init_model import resolve
 
-    fraction = check_bag_arguments(args)
     work = args.work or args.out.with_suffix(".fit")
     work.mkdir(parents=True, exist_ok=True)
     measurable = args.features == "measurable"
@@ -239,7 +246,7 @@ def run(args: argparse.Namespace, desc: Any, shipped: str, log: Callable, starte
         if measurable:
             assert ukf_file is not None and described is not None
             described.write_text(desc.ukf_params_yaml())
-            _stage(log, started, "identifying the UKF's axles")
+            stage(log, started, "identifying the UKF's axles")
             found = identify(head, args.vehicle, ukf_file, log)
         train = ["--data", *args.bags, "--split", "time", "--test-fraction", f"{fraction!r}"]
         train += ["--init", shipped, "--out", str(args.out), "--force"]
@@ -252,11 +259,11 @@ def run(args: argparse.Namespace, desc: Any, shipped: str, log: Callable, starte
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
             train += ["--car", "given"]
-        _stage(log, started, f"fine-tuning {shipped}: {recipe.summary}")
+        stage(log, started, f"fine-tuning {shipped}: {recipe.summary}")
         code = train_main(train)
         if code != 0:
             return code
-        _stage(log, started, "scoring on the test part of every recording")
+        stage(log, started, "scoring on the test part of every recording")
         traces, labels = scored_traces(
             args, fraction, [args.out, resolve(shipped)], ukf_file, described
         )
@@ -275,25 +282,19 @@ def run(args: argparse.Namespace, desc: Any, shipped: str, log: Callable, starte
         "bags": [str(b) for b in args.bags],
         "test_fraction": fraction,
         "models": {"fitted": labels[0], "shipped": labels[1]},
-        "pooled": [
-            {"estimator": n, **{k: _finite(v) for k, v in asdict(m).items()}}
-            for n, m in rows.items()
-        ],
+        "pooled": [{"estimator": n, **metrics_json(m)} for n, m in rows.items()],
     }
     (report / "metrics.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
     card = _card(args, desc, recipe, fraction, found, rows, train_metrics, report,
                  time.perf_counter() - started)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
-    _stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
+    stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0
 
 
-def _finite(v: Any) -> Any:
-    return None if isinstance(v, float) and not math.isfinite(v) else v
-
-
-def _stage(log: Callable, started: float, what: str) -> None:
+def stage(log: Callable, started: float, what: str) -> None:
+    """Log ``what`` with the seconds since ``started``."""
     log(f"[{time.perf_counter() - started:6.0f} s] {what}")
 
 
