@@ -60,7 +60,7 @@ def test_the_cli_writes_the_model_with_its_uncertainty_and_evaluate_scores_it(
 ) -> None:
     model = tmp_path / "m.safetensors"
     args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
-    assert train_main([*args, "--out", str(model), *TINY]) == 0
+    assert train_main([*args, "--out", str(model), "--intervals", "no", *TINY]) == 0
     out = tmp_path / "calibrated.safetensors"
     assert main(["--model", str(model), "--data", str(sim_bag_dir), "--out", str(out)]) == 0
     before, after = read_artifact(model), read_artifact(out)

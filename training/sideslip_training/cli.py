@@ -15,7 +15,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from .init_model import InitError
 from .inputs import add_car_argument
 from .run_folder import start_run_folder
 from .search import run_pso
+from .train_intervals import INTERVAL_POLICIES, calibrate_selection, interval_mode
 from .train_metrics import pooled_test_metrics, val_metrics
 from .train_plan import TrainPlan, plan_training, run_config
 from .trainer import EpochRecord, TrainResult, train_model
@@ -107,6 +108,17 @@ def _train_parser() -> argparse.ArgumentParser:
         help="after early stopping chose the epoch count on validation, train again on "
         "training + validation for that many epochs and export that model; auto: when the "
         "split is in time (the validation part is then the stretch before the test)",
+    )
+    p.add_argument(
+        "--intervals",
+        choices=list(INTERVAL_POLICIES),
+        default="auto",
+        help="the per-sample σ the model publishes, calibrated on the validation runs "
+        "with the model early stopping chose (before any refit): scale keeps the --init "
+        "model's σ terms and fits their scale; fit fits terms and scale on halves of the "
+        "validation bags; auto (default): scale when fine-tuning a model with σ terms, "
+        "else fit with two or more validation bags, else none; no: none (the constant "
+        "validation RMSE²)",
     )
     p.add_argument(
         "--window-s",
@@ -243,6 +255,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     started = time.perf_counter()
     try:
         plan = plan_training(args, log)
+        intervals = interval_mode(args.intervals, plan)
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
         return _error(err, EXIT_BAD_INPUT)
     command = " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])])
@@ -253,18 +266,28 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         return _error(err, EXIT_BAD_INPUT)
     try:
         result, pso_info = _train(args, plan, log)
-        result, metrics = _validate_and_refit(args, plan, config["split"], result, log)
-        meta = model_metadata(
-            plan,
-            result,
-            architecture=args.model,
-            normalization=args.normalization,
-            digest=config["data_digest"],
-            metrics=metrics,
-            pso_info=pso_info,
-            command=command,
-            wall_s=time.perf_counter() - started,
+
+        def metadata(result: TrainResult, metrics: dict[str, Any]) -> ModelMetadata:
+            return model_metadata(
+                plan,
+                result,
+                architecture=args.model,
+                normalization=args.normalization,
+                digest=config["data_digest"],
+                metrics=metrics,
+                pso_info=pso_info,
+                command=command,
+                wall_s=time.perf_counter() - started,
+            )
+
+        # Before the refit: the validation runs are still unseen by the selected model.
+        uncertainty, calibration = calibrate_selection(
+            intervals, plan, result.model, metadata(result, {}), args.seed, log
         )
+        result, metrics = _validate_and_refit(args, plan, config["split"], result, log)
+        if calibration is not None:
+            metrics["interval_calibration"] = calibration
+        meta = replace(metadata(result, metrics), uncertainty=uncertainty)
         _export(args.out, result, meta)
     except _Stop as stop:
         return _error(stop, stop.exit_code)

@@ -45,7 +45,7 @@ def pooled_test_metrics(
     per estimator its MAE and RMSE [deg], R² and sample count. ``spec``: the training's
     inputs, whose car and ``ukf`` params file serve test runs whose bags record no car
     (a real recording), as they served its training runs."""
-    from .evaluate import evaluate_runs, model_label, pooled
+    from .evaluate import evaluate_runs, interval_coverage, model_label, pooled
 
     net, meta = load_model(model_path)
     traces = evaluate_runs(
@@ -57,13 +57,21 @@ def pooled_test_metrics(
         observer_params_file=spec.observer_params_file if spec is not None else None,
         car=spec.car if spec is not None else "recorded",
     )
-    out = {
+    out: dict[str, dict[str, float]] = {
         name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}
         for name, m in pooled(traces).items()
     }
+    for name, figures in out.items():
+        mine = [t for t in traces if t.estimator == name and t.sigma_rad is not None]
+        if mine:  # the model's published σ: the share of test samples inside ±1.96 σ
+            figures["coverage_95"] = interval_coverage(mine)
     log(
         "test (pooled over "
         + f"{len(runs)} run(s)): "
-        + "; ".join(f"{n} MAE {v['mae_deg']:.4f} deg" for n, v in out.items())
+        + "; ".join(
+            f"{n} MAE {v['mae_deg']:.4f} deg"
+            + (f", {v['coverage_95']:.3f} inside ±1.96 σ" if "coverage_95" in v else "")
+            for n, v in out.items()
+        )
     )
     return out

@@ -1,0 +1,104 @@
+"""The per-sample σ a model leaves ``sideslip-train`` with (``--intervals``).
+
+A trained or fine-tuned model without an uncertainty model publishes its validation
+RMSE² as a constant variance, whatever the driving. ``sideslip-train`` calibrates it as
+``sideslip-calibrate`` would (:func:`.calibrate.calibrate`), on the validation runs and
+with the model that early stopping chose, **before** any refit: those runs are the only
+data that model has not trained on. The refit model (trained again on training +
+validation) then carries that σ; it has seen more data, so its intervals lean wide
+rather than narrow (measured in docs/evaluation/intervals, "Fitted models").
+
+Policies:
+
+- ``scale``: keep the σ terms of the ``--init`` model (fitted on a fleet) and fit only
+  the conformal scale on all the validation runs: minutes of one car's driving fix an
+  error level, not four coefficients; works with a single recording;
+- ``fit``: terms by likelihood on half the validation bags, the scale on the other half
+  (needs at least two validation bags);
+- ``auto`` (default): ``scale`` when fine-tuning a model that has σ terms, else ``fit``
+  when there are two or more validation bags, else none;
+- ``no``: none (the constant validation RMSE²).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any, Final
+
+from .cli_errors import CliError
+from .dataset import DatasetError
+from .train_plan import TrainPlan
+
+INTERVAL_POLICIES: Final = ("auto", "scale", "fit", "no")
+
+
+def interval_mode(policy: str, plan: TrainPlan) -> str | None:
+    """What ``policy`` does for this training: ``scale``, ``fit`` or None.
+
+    Raises CliError, before anything is trained, for an explicit policy the training
+    cannot follow."""
+    if policy not in INTERVAL_POLICIES:
+        raise CliError(f"--intervals must be one of {', '.join(INTERVAL_POLICIES)}, got {policy}")
+    init_has_terms = plan.init is not None and plan.init.meta.uncertainty is not None
+    val_bags = len({r.bag for r in plan.data.val_runs})
+    if policy == "scale" and not init_has_terms:
+        raise CliError(
+            "--intervals scale keeps the σ terms of the --init model, but "
+            + ("there is no --init" if plan.init is None else f"{plan.init.path.name} has none")
+            + ": use --intervals fit or auto"
+        )
+    if policy == "fit" and val_bags < 2:
+        raise CliError(
+            f"--intervals fit needs two or more validation bags (one half fits the σ "
+            f"terms, the other their scale), got {val_bags}: use --intervals scale with an "
+            "--init model that has σ terms, or give more bags"
+        )
+    if policy == "auto":
+        if init_has_terms:
+            return "scale"
+        return "fit" if val_bags >= 2 else None
+    return None if policy == "no" else policy
+
+
+def calibrate_selection(
+    mode: str | None,
+    plan: TrainPlan,
+    model: Any,
+    meta: Any,
+    seed: int,
+    log: Callable[[str], None],
+) -> tuple[dict[str, Any] | None, dict[str, float] | None]:
+    """The uncertainty model (:meth:`~sideslip_msgs_py.uncertainty.Uncertainty.to_dict`)
+    and the calibration's figures for the selected ``model`` (metadata ``meta``), fitted
+    on the validation runs; (None, None) for ``mode`` None or when the validation runs
+    hold too few scored samples (said in the log)."""
+    from .calibrate import calibrate
+
+    if mode is None:
+        log("intervals: none (no σ terms to keep and fewer than two validation bags)")
+        return None, None
+    if mode == "scale":
+        assert plan.init is not None
+        # The selected model starts without σ; its terms are the --init model's.
+        meta = replace(meta, uncertainty=plan.init.meta.uncertainty)
+    spec = plan.spec
+    car = {
+        "vehicle": spec.vehicle,
+        "observer_params_file": spec.observer_params_file,
+        "car": spec.car,
+    }
+    try:
+        unc, figures = calibrate(
+            plan.data.val_runs, model, meta, seed=seed, scale_only=mode == "scale", car=car
+        )
+    except DatasetError as err:
+        log(f"intervals: none ({err})")
+        return None, None
+    log(
+        f"intervals ({mode}, on the validation runs with the selected model): scale "
+        f"{unc.scale:.3f}, {figures['coverage_scale_half']:.3f} of the samples inside "
+        f"±1.96 σ; per run {figures['coverage_per_run_min']:.3f} (min) to "
+        f"{figures['coverage_per_run_median']:.3f} (median)"
+    )
+    return unc.to_dict(), figures
