@@ -58,6 +58,28 @@ def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(
     assert mae[models["shipped"]] < mae["UKF (identified axles)"]
 
 
+def test_the_fitted_model_publishes_a_calibrated_sigma_and_the_card_says_how_it_held(fitted):
+    """σ terms kept from the shipped model, scale fitted on the validation stretch; the
+    test part says how often β lay inside ±1.96 σ, for both models that carry σ."""
+    from sideslip_msgs_py.artifact import read_artifact
+    from sideslip_training.init_model import resolve
+
+    _, out = fitted
+    mine = read_artifact(out)[1]
+    shipped = read_artifact(resolve("fleet_ukf_measurable"))[1]
+    assert mine.uncertainty is not None
+    assert mine.uncertainty["coefficients"] == shipped.uncertainty["coefficients"]
+    assert mine.metrics["interval_calibration"]["scale_only"] == 1.0
+    report = json.loads((out.with_suffix(".fit") / "report" / "metrics.json").read_text())
+    inside = {r["estimator"]: r.get("coverage_95") for r in report["pooled"]}
+    models = report["models"]
+    assert 0.5 < inside[models["fitted"]] <= 1.0 and 0.0 < inside[models["shipped"]] <= 1.0
+    assert inside["β = 0"] is None
+    card = out.with_suffix(".md").read_text()
+    assert "inside ±1.96 σ" in card and f"{inside[models['fitted']]:.1%}" in card
+    assert "fitted on the validation stretch" in card
+
+
 def test_the_test_part_is_each_recordings_last_share(fitted, foreign_bags):
     """30 % of every recording by default: the test rows count that share of samples
     at the model's 400 Hz, less the first window of each."""

@@ -229,7 +229,7 @@ def run(
     from .cli import train_main
     from .cli_errors import EXIT_BAD_INPUT
     from .dataset import DatasetError
-    from .evaluate import FilterError, metrics_json, pooled, table_markdown
+    from .evaluate import FilterError, interval_coverage, metrics_json, pooled, table_markdown
     from .export import load_model
     from .init_model import resolve
 
@@ -278,15 +278,25 @@ def run(
     # The fitted model first, then what the node gives without the fit, then the rest.
     order = [*labels, IDENTIFIED_UKF, DESCRIBED_UKF, *rows]
     rows = {name: rows[name] for name in dict.fromkeys(order) if name in rows}
+    # The published 95 % interval's share of test samples (models with σ only).
+    inside = {n: interval_coverage([t for t in traces if t.estimator == n]) for n in rows}
+    inside = {n: c for n, c in inside.items() if math.isfinite(c)}
     summary = {
         "bags": [str(b) for b in args.bags],
         "test_fraction": fraction,
         "models": {"fitted": labels[0], "shipped": labels[1]},
-        "pooled": [{"estimator": n, **metrics_json(m)} for n, m in rows.items()],
+        "pooled": [
+            {
+                "estimator": n,
+                **metrics_json(m),
+                **({"coverage_95": inside[n]} if n in inside else {}),
+            }
+            for n, m in rows.items()
+        ],
     }
     (report / "metrics.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
-    card = _card(args, desc, recipe, fraction, found, rows, train_metrics, report,
+    card = _card(args, desc, recipe, fraction, found, rows, inside, train_metrics, report,
                  time.perf_counter() - started)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
@@ -305,15 +315,31 @@ def _card(
     fraction: float,
     found: Any,
     rows: dict[str, Any],
+    inside: dict[str, float],
     train_metrics: dict[str, Any],
     report: Path,
     seconds: float,
 ) -> str:
     table = "\n".join(
-        f"| {name} | {m.mae:.4f} | {m.rmse:.4f} | {m.r2:.3f} | {m.n} |"
+        f"| {name} | {m.mae:.4f} | {m.rmse:.4f} | {m.r2:.3f} | "
+        f"{f'{inside[name]:.1%}' if name in inside else '—'} | {m.n} |"
         for name, m in rows.items()
         if math.isfinite(m.mae)
     )
+    calibration = train_metrics.get("interval_calibration")
+    if not calibration:
+        sigma = "\n\nIt carries no per-sample σ: the node publishes its validation RMSE²."
+    else:
+        terms = (
+            "the shipped model's σ terms, their scale"
+            if calibration["scale_only"]
+            else "σ terms and scale, on halves of the recordings,"
+        )
+        sigma = (
+            f"\n\nIts σ (published in `/sideslip/twist`): {terms} fitted on the validation "
+            "stretch with the model chosen before the refit, which had not trained on it "
+            f"({calibration['coverage_scale_half']:.1%} of that stretch inside ±1.96 σ)."
+        )
     ukf = args.out.with_suffix(".ukf.yaml")
     car_files = (
         f" -p pso_lstm.vehicle_file:={args.vehicle} -p pso_lstm.observer_params_file:={ukf}"
@@ -345,7 +371,7 @@ Fitted by `sideslip-fit --vehicle {args.vehicle} --bags {" ".join(args.bags)}{to
 The car's own recordings, each split in time: the first {1 - fraction:.0%} for
 identification and fine-tuning ({recipe.summary}, `--split time`: the validation part
 is the stretch before the test), the last {fraction:.0%} for the test below and nothing
-else.{axles}{kept}
+else.{axles}{kept}{sigma}
 
 ## Deploy
 
@@ -353,8 +379,8 @@ else.{axles}{kept}
 
 ## Result on the test part (pooled over the recordings, degrees)
 
-| estimator | MAE | RMSE | R² | samples |
-|---|---|---|---|---|
+| estimator | MAE | RMSE | R² | inside ±1.96 σ | samples |
+|---|---|---|---|---|---|
 {table}
 
 Per recording: `{report / "table.md"}`. The shipped model's row is what the node gives
