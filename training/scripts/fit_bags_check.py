@@ -14,6 +14,11 @@ car's four validation-fleet runs (other manoeuvres, roads and speeds: new drives
 Writes ``OUT/summary.json`` and prints a markdown table.
 
     python training/scripts/fit_bags_check.py --cars 0 1 2 3 --out data/fit-bags-check
+
+``--held-out``: the six held-out cars instead (``--cars`` indexes them in
+``sideslip_sim.held_out`` order), their own driving with the learning curve's seed (7,
+``held_out_curve.py``), scored on their 18 benchmark runs each (``--val-data
+data/held-out``). A held-out car is scored so once; nothing is chosen on it.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ import yaml
 
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
-from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import main as fit_main
 from sideslip_training.init_model import resolve
@@ -40,6 +45,7 @@ from held_out_fit import description
 VAL_SEED = 2
 VAL_CARS = 25
 OWN_SEED = 4000
+HELD_OUT_OWN_SEED = 7  # held_out_curve.py's default seed
 
 
 def pooled(report: Path) -> dict[str, float]:
@@ -54,19 +60,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--val-data", type=Path, default=Path("data/fleet-val"))
     p.add_argument("--out", type=Path, default=Path("data/fit-bags-check"))
     p.add_argument("--fit-args", default="", help="more sideslip-fit options")
+    p.add_argument("--held-out", action="store_true", help="the six held-out cars (see above)")
     args = p.parse_args(argv)
-    cars = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
+    if args.held_out:
+        cars = list(held_out_vehicles().values())
+    else:
+        cars = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
     results = {}
     for k in args.cars:
         car = cars[k]
         work = args.out / car.name
         own = work / "own"
         if not (own / "index.json").exists():
-            runs = own_runs(car, args.minutes, OWN_SEED + k)
+            seed = HELD_OUT_OWN_SEED if args.held_out else OWN_SEED + k
+            runs = own_runs(car, args.minutes, seed)
             runs = runs[: len(first_minutes(runs, args.minutes))]
             prepare_output(own, force=True)
-            generate(runs, own, seed=OWN_SEED + k,
-                     preset_name="own driving", jobs=1, progress=False)  # fmt: skip
+            generate(runs, own, seed=seed, preset_name="own driving", jobs=1, progress=False)
         desc = work / "description.yaml"
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
         out = work / "fitted.safetensors"
