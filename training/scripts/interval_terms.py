@@ -39,6 +39,23 @@ SETS = {
     "window means + β̂² + |a_y|": ["1", "1/v2", "ay2w", "bdot2w", "est2", "absay"],
     "1, 1/v², β̂²": ["1", "1/v2", "est2"],
 }
+# Terms from the UKF observer a model reads (its inputs at the sample): what the
+# observer's model misses shows in its innovations, and the friction used in a_y / μ̂.
+OBSERVER_SETS = {
+    "+ window mean of ψ̇ innovation²": ["1", "1/v2", "ay2", "bdot2", "innr2w"],
+    "+ window mean of a_y innovation²": ["1", "1/v2", "ay2", "bdot2", "innay2w"],
+    "+ both innovations²": ["1", "1/v2", "ay2", "bdot2", "innr2w", "innay2w"],
+    "+ (a_y / μ̂ g)²": ["1", "1/v2", "ay2", "bdot2", "ayfric2"],
+    "+ both innovations² + (a_y / μ̂ g)²": [
+        "1",
+        "1/v2",
+        "ay2",
+        "bdot2",
+        "innr2w",
+        "innay2w",
+        "ayfric2",
+    ],
+}
 MU_THIRDS = ((0.0, 0.5), (0.5, 0.8), (0.8, 1.01))
 
 
@@ -60,6 +77,7 @@ def samples(model: str, data: str) -> dict[str, np.ndarray]:
             c = np.concatenate([[0.0], np.cumsum(x)])
             return (c[w:] - c[:-w]) / w
 
+        observed = observer_terms(meta, run, window_mean)
         entry = index[Path(str(run.bag)).name]
         car = cars.setdefault(entry["vehicle"], len(cars))
         d = {
@@ -75,10 +93,31 @@ def samples(model: str, data: str) -> dict[str, np.ndarray]:
             "run": np.full(est.size, i),
             "car": np.full(est.size, car),
             "mu": np.full(est.size, float(entry["mu"])),
+            **observed,
         }
         ok = np.isfinite(d["err"])
         parts.append({k: x[ok] for k, x in d.items()})
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def observer_terms(meta, run, window_mean) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The observer's candidate terms per scored sample (none for a model without it)."""
+    names = list(meta.features)
+    wanted = ("ukf.yaw_rate_innovation_radps", "ukf.lateral_acceleration_innovation_mps2")
+    if not all(n in names for n in (*wanted, "ukf.road_friction")):
+        return {}
+    from sideslip_training.inputs import InputSpec
+
+    spec = InputSpec(meta.features, meta.prior, meta.dt_s, None, meta.observer)
+    x = spec.inputs(run)
+    w = meta.window_steps
+    inn_r, inn_ay = (np.nan_to_num(x[:, names.index(n)]) for n in wanted)
+    mu = np.maximum(np.nan_to_num(x[:, names.index("ukf.road_friction")], nan=1.0), 0.1)
+    return {
+        "innr2w": window_mean(inn_r**2),
+        "innay2w": window_mean(inn_ay**2),
+        "ayfric2": (run.samples.y_a_mps2[w - 1 :] / (mu[w - 1 :] * 9.81)) ** 2,
+    }
 
 
 def fit(t: np.ndarray, e2: np.ndarray) -> np.ndarray:
@@ -102,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     order = np.random.default_rng(0).permutation(np.unique(runs))
     folds = (order[::2], order[1::2])
     print(f"{runs.size} samples, {np.unique(runs).size} runs, {np.unique(d['car']).size} cars")
-    for name, keys in SETS.items():
+    sets = {**SETS, **(OBSERVER_SETS if "innr2w" in d else {})}
+    for name, keys in sets.items():
         t = np.stack([d[k] for k in keys], axis=1)
         inside = np.zeros(runs.size, bool)
         for k in range(2):
