@@ -523,3 +523,21 @@ def test_init_takes_a_shipped_model_by_name_and_refuses_an_unknown_one(
     assert meta.prior == "kinematic_window"
     assert train_main(["--init", "no_such_model", *args, "--force"]) == 2
     assert "shipped: " in capsys.readouterr().err
+
+
+def test_the_run_metrics_are_strict_json_with_null_for_an_undefined_figure(
+    sim_bag_dir: Path, tmp_path: Path
+) -> None:
+    """A straight test run has a constant β, so its R² is undefined: metrics.json says
+    null (any JSON reader opens it), never NaN."""
+    out = tmp_path / "m.safetensors"
+    train = [str(sim_bag_dir / n) for n in ("dlc_70", "sine_60", "sine_80")]
+    args = ["--data", *train, "--test", str(sim_bag_dir / "straight_50"), "--model", "lstm"]
+    assert train_main([*args, "--hidden-units", "4", "--out", str(out), *TINY]) == 0
+
+    def refuse(name: str) -> None:
+        raise AssertionError(f"metrics.json holds {name}")
+
+    text = (tmp_path / "m.run" / "metrics.json").read_text()
+    metrics = json.loads(text, parse_constant=refuse)
+    assert any(v["r2"] is None for v in metrics["test"].values())

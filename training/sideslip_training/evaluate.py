@@ -4,13 +4,11 @@ atan2(Y_v, X_v), raw and smoothed, beside every learned model.
 
 Every estimator is scored on the same samples: those with a full window behind them
 (sample index ≥ window − 1 of each run), so the baselines are not credited with the
-first 250 ms that a network cannot see.
+first 250 ms that a network cannot see. Tables of the traces: :mod:`.evaluate_tables`.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -76,11 +74,6 @@ def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:
         n=int(err.size),
         excluded=excluded,
     )
-
-
-def _num(x: float, spec: str) -> str:
-    """``x`` formatted, or "n/a" when it is not finite (no NaN in a table)."""
-    return format(x, spec) if math.isfinite(x) else "n/a"
 
 
 @dataclass(frozen=True)
@@ -304,75 +297,6 @@ def evaluate_runs(
     return traces
 
 
-# --- tables ----------------------------------------------------------------------------
-
-
-def _rows(traces: Sequence[Trace]) -> list[tuple[str, str, Metrics]]:
-    return [(t.scenario, t.estimator, t.metrics) for t in traces]
-
-
-def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
-    """Table 5/6 layout: one block per scenario, one row per estimator, plus the mean."""
-    out = io.StringIO()
-    if title:
-        out.write(f"{title}\n\n")
-    out.write("| Scenario | Model | MAE [deg] | ME [deg] | RMSE [deg] | R² |\n")
-    out.write("|---|---|---|---|---|---|\n")
-    last = None
-    rows = _rows(traces)
-    for scen, name, m in rows:
-        label = scen if scen != last else ""
-        last = scen
-        out.write(
-            f"| {label} | {name} | {_num(m.mae, '.3f')} | {_num(m.me, '+.3f')} | "
-            f"{_num(m.rmse, '.3f')} | {_num(m.r2, '.3f')} |\n"
-        )
-    for name in dict.fromkeys(t.estimator for t in traces):
-        ms = [t.metrics for t in traces if t.estimator == name]
-        out.write(
-            f"| mean | {name} | {_mean(ms, 'mae', '.3f')} | {_mean(ms, 'me', '+.3f')} | "
-            f"{_mean(ms, 'rmse', '.3f')} | {_mean(ms, 'r2', '.3f')} |\n"
-        )
-    for name, m in pooled(traces).items():
-        out.write(
-            f"| pooled | {name} | {_num(m.mae, '.3f')} | {_num(m.me, '+.3f')} | "
-            f"{_num(m.rmse, '.3f')} | {_num(m.r2, '.3f')} |\n"
-        )
-    out.write(
-        "\n*mean*: the average of the per-bag figures (each bag counts once); *pooled*: "
-        "over all samples of all bags (each sample counts once).\n"
-    )
-    with_sigma = [n for n in dict.fromkeys(t.estimator for t in traces) if _has_sigma(traces, n)]
-    if with_sigma:
-        out.write("\nShare of samples inside the published 95 % interval (β̂ ± 1.96 σ):\n\n")
-        out.write("| Scenario | " + " | ".join(with_sigma) + " |\n")
-        out.write("|---|" + "---|" * len(with_sigma) + "\n")
-        for scen in dict.fromkeys(t.scenario for t in traces):
-            cells = [
-                interval_coverage([t for t in traces if t.scenario == scen and t.estimator == n])
-                for n in with_sigma
-            ]
-            out.write(f"| {scen} | " + " | ".join(_num(c, ".3f") for c in cells) + " |\n")
-        pooled_cov = [
-            interval_coverage([t for t in traces if t.estimator == n]) for n in with_sigma
-        ]
-        out.write("| pooled | " + " | ".join(_num(c, ".3f") for c in pooled_cov) + " |\n")
-    excluded = {name: 0 for _, name, _ in rows}
-    for _, name, m in rows:
-        excluded[name] += m.excluded
-    notes = [f"{name}: {n}" for name, n in excluded.items() if n]
-    if notes:
-        out.write(
-            "\nSamples left out (estimate or reference not finite, e.g. a filter below its "
-            f"speed or a non-finite sample in the bag): {'; '.join(notes)}.\n"
-        )
-    return out.getvalue()
-
-
-def _has_sigma(traces: Sequence[Trace], estimator: str) -> bool:
-    return any(t.sigma_rad is not None for t in traces if t.estimator == estimator)
-
-
 def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:
     """Per estimator, the metrics over the samples of every run together (sample-
     weighted: a 5-s straight stretch weighs as little as its samples)."""
@@ -384,24 +308,3 @@ def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:
             np.concatenate([t.reference_rad for t in mine]),
         )
     return out
-
-
-def _mean(ms: Sequence[Metrics], field: str, spec: str) -> str:
-    """Mean of a metric over runs, leaving out runs where it is undefined (R² of a run
-    whose β is constant, any metric of a run with no finite sample)."""
-    values = [getattr(m, field) for m in ms if math.isfinite(getattr(m, field))]
-    return format(float(np.mean(values)), spec) if values else "n/a"
-
-
-def table_csv(traces: Sequence[Trace]) -> str:
-    out = io.StringIO()
-    writer = csv.writer(out)
-    writer.writerow(
-        ["scenario", "model", "mae_deg", "me_deg", "rmse_deg", "r2", "samples", "excluded"]
-    )
-    rows = [*_rows(traces), *(("pooled", n, m) for n, m in pooled(traces).items())]
-    for scen, name, m in rows:
-        writer.writerow(
-            [scen, name] + [_num(x, ".6f") for x in (m.mae, m.me, m.rmse, m.r2)] + [m.n, m.excluded]
-        )
-    return out.getvalue()

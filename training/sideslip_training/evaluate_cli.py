@@ -78,10 +78,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         model_label,
         outside_training_cars,
         pooled,
-        table_csv,
-        table_markdown,
     )
     from .evaluate_figures import plot_band, plot_error_pdfs, plot_traces
+    from .evaluate_tables import table_csv, table_markdown
 
     args = _evaluate_parser().parse_args(argv)
     try:

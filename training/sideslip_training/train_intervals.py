@@ -22,6 +22,7 @@ Policies:
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, Final
@@ -68,15 +69,26 @@ def calibrate_selection(
     meta: Any,
     seed: int,
     log: Callable[[str], None],
+    policy: str = "auto",
 ) -> tuple[dict[str, Any] | None, dict[str, float] | None]:
     """The uncertainty model (:meth:`~sideslip_msgs_py.uncertainty.Uncertainty.to_dict`)
     and the calibration's figures for the selected ``model`` (metadata ``meta``), fitted
-    on the validation runs; (None, None) for ``mode`` None or when the validation runs
-    hold too few scored samples (said in the log)."""
+    on the validation runs; (None, None) for ``mode`` None or when the calibration
+    cannot be made (too few scored samples, a filter or feature that fails on the
+    validation runs): the model is still exported, with its validation RMSE² as σ, and
+    an explicit ``policy`` (``scale``, ``fit``) says so on stderr even with --quiet."""
+    from sideslip_msgs_py.features import FeatureError
+
     from .calibrate import calibrate
+    from .evaluate import FilterError
 
     if mode is None:
-        log("intervals: none (no σ terms to keep and fewer than two validation bags)")
+        why = (
+            "--intervals no"
+            if policy == "no"
+            else "no σ terms to keep and fewer than two validation bags"
+        )
+        log(f"intervals: none ({why})")
         return None, None
     if mode == "scale":
         assert plan.init is not None
@@ -92,8 +104,14 @@ def calibrate_selection(
         unc, figures = calibrate(
             plan.data.val_runs, model, meta, seed=seed, scale_only=mode == "scale", car=car
         )
-    except DatasetError as err:
+    except (DatasetError, FilterError, FeatureError, ValueError) as err:
         log(f"intervals: none ({err})")
+        if policy != "auto":
+            print(
+                f"sideslip-train: warning: --intervals {policy} could not be calibrated "
+                f"({err}); the model publishes its validation RMSE² as σ",
+                file=sys.stderr,
+            )
         return None, None
     log(
         f"intervals ({mode}, on the validation runs with the selected model): scale "
