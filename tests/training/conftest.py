@@ -94,23 +94,18 @@ def sim_bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-@pytest.fixture(scope="session")
-def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """Two minutes of ``compact_rwd`` driving (12 runs) recorded as another stack would:
-    other topics and types, 100 Hz, a steering-wheel angle, the reference velocity from a
-    GNSS/INS in the east/north frame; the paper's noise on the IMU and the steering.
-    Returns the folder of bags and the topic map that reads them."""
-    import yaml
-    from foreign_bag import TOPIC_MAP, Truth, write_foreign_bag
+def _record_foreign(folder: Path, count: int, seed: int, rng_seed: int) -> None:
+    """``count`` fleet-style runs of ``compact_rwd`` (fleet seed ``seed``) written into
+    ``folder`` as another stack records them (see :func:`foreign_bags`)."""
+    from foreign_bag import Truth, write_foreign_bag
 
     from sideslip_sim.presets import fleet_runs
     from sideslip_sim.simulate import simulate
     from sideslip_sim.vehicle import load_vehicle
 
-    folder = tmp_path_factory.mktemp("foreign")
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(rng_seed)
     car = load_vehicle("compact_rwd")
-    for i, vr in enumerate(fleet_runs([car] * 3, 12, 5)):
+    for i, vr in enumerate(fleet_runs([car] * math.ceil(count / 4), count, seed)):
         s = simulate(vr.vehicle, vr.maneuver)
         k = slice(None, None, 4)  # 400 Hz -> 100 Hz
         n = s.t_s[k].size
@@ -125,9 +120,31 @@ def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
             yaw=s.psi_rad[k] + 0.7,
         )
         write_foreign_bag(folder / f"drive{i:02d}", truth)
+
+
+@pytest.fixture(scope="session")
+def foreign_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two minutes of ``compact_rwd`` driving (12 runs) recorded as another stack would:
+    other topics and types, 100 Hz, a steering-wheel angle, the reference velocity from a
+    GNSS/INS in the east/north frame; the paper's noise on the IMU and the steering.
+    Returns the folder of bags and the topic map that reads them."""
+    import yaml
+    from foreign_bag import TOPIC_MAP
+
+    folder = tmp_path_factory.mktemp("foreign")
+    _record_foreign(folder, 12, seed=5, rng_seed=3)
     topic_map = folder / "map.yaml"
     topic_map.write_text(yaml.safe_dump(TOPIC_MAP))
     return folder, topic_map
+
+
+@pytest.fixture(scope="session")
+def foreign_new_drives(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Three other drives of the same car, recorded the same way (other fleet seed and
+    noise): read with :func:`foreign_bags`' topic map."""
+    folder = tmp_path_factory.mktemp("foreign_new")
+    _record_foreign(folder, 3, seed=11, rng_seed=4)
+    return folder
 
 
 @pytest.fixture

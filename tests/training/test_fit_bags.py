@@ -12,8 +12,9 @@ from sideslip_training.fit import main
 
 
 @pytest.fixture(scope="module")
-def fitted(foreign_bags, tmp_path_factory):
-    """One measurable fit on the foreign bags (2 epochs: a real, small training)."""
+def fitted(foreign_bags, foreign_new_drives, tmp_path_factory):
+    """One measurable fit on the foreign bags (2 epochs: a real, small training), with
+    three other drives of the car as --test-bags."""
     from described_cars import describe_compact_rwd
 
     folder, topic_map = foreign_bags
@@ -22,7 +23,7 @@ def fitted(foreign_bags, tmp_path_factory):
     out = tmp / "my_car.safetensors"
     code = main(["--vehicle", str(desc), "--bags", str(folder), "--topic-map", str(topic_map),
                  "--features", "measurable", "--out", str(out), "--max-epochs", "2",
-                 "--quiet"])  # fmt: skip
+                 "--test-bags", str(foreign_new_drives), "--quiet"])  # fmt: skip
     return code, out
 
 
@@ -90,6 +91,36 @@ def test_the_test_part_is_each_recordings_last_share(fitted, foreign_bags):
     assert table.count("@test") >= 12
 
 
+def test_separate_recordings_are_scored_whole_beside_the_test_part(
+    fitted, foreign_bags, foreign_new_drives
+):
+    """--test-bags: every sample of the three other drives with a full window behind it
+    (at the model's step), the same estimators as the test part, the share inside
+    ±1.96 σ for the models with σ; on the card."""
+    from sideslip_msgs_py.topic_map import TopicMap
+    from sideslip_training.dataset import load_runs
+
+    _, out = fitted
+    report = json.loads((out.with_suffix(".fit") / "report" / "metrics.json").read_text())
+    assert report["test_bags"] == [str(foreign_new_drives)]
+    rows = {r["estimator"]: r for r in report["test_bags_pooled"]}
+    assert set(rows) == {r["estimator"] for r in report["pooled"]}
+    models = report["models"]
+    assert 0.0 < rows[models["fitted"]]["coverage_95"] <= 1.0
+    assert "coverage_95" not in rows["UKF (identified axles)"]
+    runs, _ = load_runs(
+        [foreign_new_drives], topic_map=TopicMap.load(foreign_bags[1]), step_s=0.0025
+    )
+    assert len(runs) == 3
+    assert rows[models["fitted"]]["n"] == sum(len(r.samples) - 99 for r in runs)
+    table = (out.with_suffix(".fit") / "report" / "test-bags.md").read_text()
+    assert "@test" not in table
+    card = out.with_suffix(".md").read_text()
+    assert "Result on the separate recordings" in card
+    assert f"| {models['fitted']} | {rows[models['fitted']]['mae']:.4f} |" in card
+    assert f"--test-bags {foreign_new_drives}" in card
+
+
 def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     foreign_bags, compact_rwd_description, tmp_path, capsys
 ):
@@ -112,26 +143,51 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     [
         (["--test-fraction", "1.5"], "--test-fraction must be in (0, 1)"),
         (["--cars", "4"], "--cars is for simulated fits"),
+        (["--test-bags", "{folder}"], "must be other drives than the fit's"),
+        (["--test-bags", "{folder}/drive03"], "must be other drives than the fit's"),
+        (["--test-bags", "{link}"], "must be other drives than the fit's"),
+        (["--test-bags", "{tmp}/nothing"], "nothing"),
+        (["--test-bags", "{short}"], "holds no stretch of a full 100-sample window"),
+        (
+            ["--features", "measurable", "--out", "{tmp}/fleet_ukf_measurable.safetensors"],
+            "name the fitted model other",
+        ),
     ],
 )
 def test_options_that_do_not_fit_recordings_are_refused(
     foreign_bags, compact_rwd_description, tmp_path, capsys, extra, message
 ):
-    folder, _ = foreign_bags
+    """One line naming what is wrong, exit 2, before anything is trained."""
+    folder, topic_map = foreign_bags
     out = tmp_path / "x.safetensors"
+    (tmp_path / "link").symlink_to(folder / "drive05")  # the same drive under another name
+    short = _short_recording(tmp_path / "short")
+    paths = {"folder": folder, "tmp": tmp_path, "link": tmp_path / "link", "short": short}
+    extra = [x.format(**paths) for x in extra]
     code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder), "--out",
-                 str(out), *extra])  # fmt: skip
+                 str(out), "--topic-map", str(topic_map), *extra])  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2
     assert err.startswith("sideslip-fit: error: ") and message in err and err.count("\n") == 1
     assert not out.exists()
+    assert not list(tmp_path.glob("*.fit/train-run"))
 
 
-def test_a_topic_map_without_bags_is_refused(compact_rwd_description, tmp_path, capsys):
-    code = main(["--vehicle", str(compact_rwd_description), "--topic-map", "map.yaml",
+def _short_recording(dest):
+    """A 0.2-s recording (20 samples at 100 Hz: under a 250-ms window)."""
+    from foreign_bag import make_truth, write_foreign_bag
+
+    return write_foreign_bag(dest, make_truth(20))
+
+
+@pytest.mark.parametrize("option", ["--topic-map", "--test-bags"])
+def test_recording_options_without_bags_are_refused(
+    compact_rwd_description, tmp_path, capsys, option
+):
+    code = main(["--vehicle", str(compact_rwd_description), option, "map.yaml",
                  "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
     assert code == 2
-    assert "--topic-map needs --bags" in capsys.readouterr().err
+    assert f"{option} needs --bags" in capsys.readouterr().err
 
 
 @pytest.fixture

@@ -16,7 +16,9 @@ recordings" does in two:
    them, ``--car given``);
 4. score on the test part: the fitted model, the shipped model as it is (zero-shot,
    with the identified file), the UKF with the identified and with the described file,
-   and the baselines; then the model card (``OUT.md``).
+   and the baselines; the same, whole, on ``--test-bags`` (other drives of the car, never
+   used for anything else) when given; then the model card (``OUT.md``,
+   :mod:`.fit_bags_card`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import argparse
 import dataclasses
 import json
 import math
+import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -33,6 +36,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from .cli_errors import CliError
+from .fit_bags_card import Scored, model_card, narrow_interval
 
 IDENTIFIED_UKF: Final = "UKF (identified axles)"
 DESCRIBED_UKF: Final = "UKF (described axles)"
@@ -79,7 +83,8 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         "--topic-map",
         type=Path,
         metavar="FILE",
-        help="with --bags: read bags recorded with other topics (docs/topic-maps.md)",
+        help="with --bags: read bags (and --test-bags) recorded with other topics "
+        "(docs/topic-maps.md)",
     )
     p.add_argument(
         "--test-fraction",
@@ -88,12 +93,20 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         help=f"with --bags: the last share of every recording kept for the test "
         f"(default {DEFAULT_TEST_FRACTION:g})",
     )
+    p.add_argument(
+        "--test-bags",
+        nargs="+",
+        metavar="BAG",
+        help="with --bags: other recordings of the car (bags or folders; other roads and "
+        "manoeuvres), scored whole after the fit and never used to identify, train, "
+        "choose or calibrate: the card's check on drives the fit has not seen",
+    )
 
 
 def check_bag_arguments(args: argparse.Namespace) -> float:
     """Refuse options that do not go together; the test fraction to use."""
     if args.bags is None:
-        for name in ("topic_map", "test_fraction"):
+        for name in ("topic_map", "test_fraction", "test_bags"):
             if getattr(args, name) is not None:
                 raise CliError(f"--{name.replace('_', '-')} needs --bags")
         return 0.0
@@ -106,13 +119,13 @@ def check_bag_arguments(args: argparse.Namespace) -> float:
     return fraction
 
 
-def _load(args: argparse.Namespace, **kwargs: Any) -> tuple[list[Any], Any]:
+def _load(args: argparse.Namespace, bags: Sequence[str], **kwargs: Any) -> tuple[list[Any], Any]:
     from sideslip_msgs_py.topic_map import TopicMap
 
     from .dataset import load_runs
 
     topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
-    return load_runs(args.bags, topic_map=topic_map, **kwargs)
+    return load_runs(list(bags), topic_map=topic_map, **kwargs)
 
 
 def split_recordings(
@@ -125,7 +138,7 @@ def split_recordings(
     from .identify_axles import CHANNELS
     from .splits import split_in_time
 
-    runs, report = _load(args, **({"channels": CHANNELS} if measurable else {}))
+    runs, report = _load(args, args.bags, **({"channels": CHANNELS} if measurable else {}))
     log(str(report))
     head, tail = split_in_time(runs, fraction, "test")
     longest = max((r.samples.stamp_ns[-1] - r.samples.stamp_ns[0]) * 1e-9 for r in tail)
@@ -159,13 +172,15 @@ def identify(head: Sequence[Any], vehicle: Path, ukf_file: Path, log: Callable) 
 
 def scored_traces(
     args: argparse.Namespace,
-    fraction: float,
+    bags: Sequence[str],
+    fraction: float | None,
     models: Sequence[Path],
     ukf_file: Path | None,
     described_ukf: Path | None,
 ) -> tuple[list[Any], list[str]]:
-    """Every estimator's traces on each recording's test part, resampled to the models'
-    step as ``sideslip-train`` cut it, and the models' labels."""
+    """Every estimator's traces on each recording's test part (its last ``fraction``, as
+    ``sideslip-train`` cut it; ``None``: the whole recording), resampled to the models'
+    step, and the models' labels."""
     import numpy as np
 
     from sideslip_msgs_py.vehicle_description import VehicleDescription
@@ -177,13 +192,14 @@ def scored_traces(
     loaded = [load_model(m) for m in models]
     meta = loaded[0][1]
     labels = [f"{model_label(m)} ({p.stem})" for (_, m), p in zip(loaded, models, strict=True)]
-    runs, _ = _load(args, step_s=meta.dt_s)
-    _, tail = split_in_time(runs, fraction, "test")
+    runs, _ = _load(args, bags, step_s=meta.dt_s)
+    tail = runs if fraction is None else split_in_time(runs, fraction, "test")[1]
     tail = [r for r in tail if len(r.samples) >= meta.window_steps]
     if not tail:
+        where = "test bag" if fraction is None else "recording's test part"
         raise CliError(
-            f"no recording's test part holds a full window of {meta.window_steps} samples: "
-            "record longer or raise --test-fraction"
+            f"no {where} holds a full window of {meta.window_steps} samples: record longer"
+            + ("" if fraction is None else " or raise --test-fraction")
         )
     measurable = ukf_file is not None
     traces = evaluate_runs(
@@ -213,6 +229,35 @@ def scored_traces(
     return traces, labels
 
 
+def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> None:
+    """Read ``--test-bags`` as they will be scored (at the model's step), before anything
+    is trained. Raises CliError (or DatasetError) when one is also a bag of ``--bags``
+    (after resolving folders and links), when one is refused by the loader, or when one
+    holds no stretch of a full window: every named test bag is scored, or none."""
+    from .dataset import find_bags
+
+    if not args.test_bags:
+        return
+    shared = sorted(set(find_bags(args.bags)) & set(find_bags(args.test_bags)))
+    if shared:
+        raise CliError(
+            f"--test-bags and --bags both name {shared[0]}"
+            + (f" (and {len(shared) - 1} more)" if len(shared) > 1 else "")
+            + ": the separate recordings must be other drives than the fit's"
+        )
+    runs, report = _load(args, args.test_bags, step_s=meta.dt_s)
+    if report.refused:
+        raise CliError(f"--test-bags: {report.refused[0]}")
+    scored = {r.bag for r in runs if len(r.samples) >= meta.window_steps}
+    short = sorted({r.bag for r in runs} - scored)
+    if short:
+        raise CliError(
+            f"--test-bags: {short[0]} holds no stretch of a full {meta.window_steps}-sample "
+            "window at the model's step: record longer or leave it out"
+        )
+    log(f"--test-bags: {report}")
+
+
 def run(
     args: argparse.Namespace,
     desc: Any,
@@ -229,7 +274,7 @@ def run(
     from .cli import train_main
     from .cli_errors import EXIT_BAD_INPUT
     from .dataset import DatasetError
-    from .evaluate import FilterError, interval_coverage, metrics_json, pooled, table_markdown
+    from .evaluate import FilterError
     from .export import load_model
     from .init_model import resolve
 
@@ -239,9 +284,19 @@ def run(
     ukf_file = args.out.with_suffix(".ukf.yaml") if measurable else None
     described = work / "described.ukf.yaml" if measurable else None
     recipe = BAG_RECIPES[args.profile]
+    report = work / "report"
+    trained = False
     try:
+        if args.out.stem == resolve(shipped).stem:
+            # The card's rows are named by file: the two models would share one.
+            raise CliError(f"--out {args.out}: name the fitted model other than {shipped}")
         _, meta = load_model(resolve(shipped))
-        head = split_recordings(args, fraction, meta.window_steps * meta.dt_s, measurable, log)
+        window_s = meta.window_steps * meta.dt_s
+        check_test_bags(args, meta, log)
+        # Nothing of an earlier fit may stay beside this one's model.
+        args.out.with_suffix(".md").unlink(missing_ok=True)
+        shutil.rmtree(report, ignore_errors=True)
+        head = split_recordings(args, fraction, window_s, measurable, log)
         found = None
         if measurable:
             assert ukf_file is not None and described is not None
@@ -263,149 +318,77 @@ def run(
         code = train_main(train)
         if code != 0:
             return code
+        trained = True
+        models = [args.out, resolve(shipped)]
+        report.mkdir(exist_ok=True)
         stage(log, started, "scoring on the test part of every recording")
-        traces, labels = scored_traces(
-            args, fraction, [args.out, resolve(shipped)], ukf_file, described
-        )
+        traces, labels = scored_traces(args, args.bags, fraction, models, ukf_file, described)
+        test_part = _scored(traces, labels, report / "table.md", f"{desc.name}: test part")
+        new_drives = None
+        if args.test_bags:
+            stage(log, started, "scoring on --test-bags")
+            traces, _ = scored_traces(args, args.test_bags, None, models, ukf_file, described)
+            new_drives = _scored(
+                traces, labels, report / "test-bags.md", f"{desc.name}: --test-bags"
+            )
+            share = narrow_interval(new_drives)
+            if share is not None:
+                print(
+                    f"sideslip-fit: warning: only {share:.1%} of --test-bags' samples lie "
+                    "inside the fitted model's ±1.96 σ: it is too narrow for those drives "
+                    "(the card says more)",
+                    file=sys.stderr,
+                )
     except (CliError, DatasetError, TopicMapError, IdentificationError, FilterError) as err:
-        print(f"sideslip-fit: error: {err}", file=sys.stderr)
+        after = f" ({args.out} was written; its card was not)" if trained else ""
+        print(f"sideslip-fit: error: {err}{after}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    report = work / "report"
-    report.mkdir(exist_ok=True)
-    table = table_markdown(traces, f"{desc.name}: test part of its recordings")
-    (report / "table.md").write_text(table)
-    rows = pooled(traces)
-    # The fitted model first, then what the node gives without the fit, then the rest.
-    order = [*labels, IDENTIFIED_UKF, DESCRIBED_UKF, *rows]
-    rows = {name: rows[name] for name in dict.fromkeys(order) if name in rows}
-    # The published 95 % interval's share of test samples (models with σ only).
-    inside = {n: interval_coverage([t for t in traces if t.estimator == n]) for n in rows}
-    inside = {n: c for n, c in inside.items() if math.isfinite(c)}
     summary = {
         "bags": [str(b) for b in args.bags],
         "test_fraction": fraction,
         "models": {"fitted": labels[0], "shipped": labels[1]},
-        "pooled": [
-            {
-                "estimator": n,
-                **metrics_json(m),
-                **({"coverage_95": inside[n]} if n in inside else {}),
-            }
-            for n, m in rows.items()
-        ],
+        "pooled": _pooled_json(test_part),
     }
+    if new_drives is not None:
+        summary["test_bags"] = [str(b) for b in args.test_bags]
+        summary["test_bags_pooled"] = _pooled_json(new_drives)
     (report / "metrics.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
-    card = _card(args, desc, recipe, fraction, found, rows, inside, train_metrics, report,
-                 time.perf_counter() - started)  # fmt: skip
+    card = model_card(args, recipe.summary, fraction, found, test_part, new_drives,
+                      train_metrics, time.perf_counter() - started)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0
 
 
+def _scored(traces: Sequence[Any], labels: Sequence[str], table: Path, title: str) -> Scored:
+    """Pooled rows (the fitted model first, then what the node gives without the fit,
+    then the rest) and the published 95 % interval's share of samples for the models
+    with σ; writes the per-recording ``table``."""
+    from .evaluate import interval_coverage, pooled
+    from .evaluate_tables import table_markdown
+
+    table.write_text(table_markdown(list(traces), title))
+    rows = pooled(list(traces))
+    order = [*labels, IDENTIFIED_UKF, DESCRIBED_UKF, *rows]
+    rows = {name: rows[name] for name in dict.fromkeys(order) if name in rows}
+    inside = {n: interval_coverage([t for t in traces if t.estimator == n]) for n in rows}
+    return Scored(rows, {n: c for n, c in inside.items() if math.isfinite(c)}, table)
+
+
+def _pooled_json(scored: Scored) -> list[dict[str, Any]]:
+    from .evaluate import metrics_json
+
+    return [
+        {
+            "estimator": n,
+            **metrics_json(m),
+            **({"coverage_95": scored.inside[n]} if n in scored.inside else {}),
+        }
+        for n, m in scored.rows.items()
+    ]
+
+
 def stage(log: Callable, started: float, what: str) -> None:
     """Log ``what`` with the seconds since ``started``."""
     log(f"[{time.perf_counter() - started:6.0f} s] {what}")
-
-
-def _card(
-    args: argparse.Namespace,
-    desc: Any,
-    recipe: BagRecipe,
-    fraction: float,
-    found: Any,
-    rows: dict[str, Any],
-    inside: dict[str, float],
-    train_metrics: dict[str, Any],
-    report: Path,
-    seconds: float,
-) -> str:
-    table = "\n".join(
-        f"| {name} | {m.mae:.4f} | {m.rmse:.4f} | {m.r2:.3f} | "
-        f"{f'{inside[name]:.1%}' if name in inside else '—'} | {m.n} |"
-        for name, m in rows.items()
-        if math.isfinite(m.mae)
-    )
-    calibration = train_metrics.get("interval_calibration")
-    if not calibration:
-        sigma = "\n\nIt carries no per-sample σ: the node publishes its validation RMSE²."
-    else:
-        terms = (
-            "the shipped model's σ terms, their scale"
-            if calibration["scale_only"]
-            else "σ terms and scale, on halves of the recordings,"
-        )
-        sigma = (
-            f"\n\nIts σ (published in `/sideslip/twist`): {terms} fitted on the validation "
-            "stretch with the model chosen before the refit, which had not trained on it "
-            f"({calibration['coverage_scale_half']:.1%} of that stretch inside ±1.96 σ)."
-        )
-    ukf = args.out.with_suffix(".ukf.yaml")
-    car_files = (
-        f" -p pso_lstm.vehicle_file:={args.vehicle} -p pso_lstm.observer_params_file:={ukf}"
-        if found is not None
-        else ""
-    )
-    axles = (
-        f"\n\nThe UKF's axles, identified from the same part (`{ukf}`): cornering stiffness "
-        f"front ×{found.stiffness_ratio_front:.3f}, rear ×{found.stiffness_ratio_rear:.3f} "
-        f"of the description's, from {found.points} quasi-steady points. The node's `ukf` "
-        "back-end and this model both read that file."
-        if found is not None
-        else ""
-    )
-    kept = (
-        "\n\n**No epoch of fine-tuning beat the shipped model on validation: this file "
-        "holds the shipped weights.**"
-        if train_metrics.get("kept_start_weights")
-        else ""
-    )
-    topic_map = f" --topic-map {args.topic_map}" if args.topic_map else ""
-    return f"""# Model card: {args.out.name}
-
-Fitted by `sideslip-fit --vehicle {args.vehicle} --bags {" ".join(args.bags)}{topic_map}
---features {args.features} --profile {args.profile}` in {seconds:.0f} s.
-
-## Data
-
-The car's own recordings, each split in time: the first {1 - fraction:.0%} for
-identification and fine-tuning ({recipe.summary}, `--split time`: the validation part
-is the stretch before the test), the last {fraction:.0%} for the test below and nothing
-else.{axles}{kept}{sigma}
-
-## Deploy
-
-`-p pso_lstm.model_file:={args.out}{car_files}`
-
-## Result on the test part (pooled over the recordings, degrees)
-
-| estimator | MAE | RMSE | R² | inside ±1.96 σ | samples |
-|---|---|---|---|---|---|
-{table}
-
-Per recording: `{report / "table.md"}`. The shipped model's row is what the node gives
-without this fit{_shipped_note(found)}.
-
-## Limits
-
-Fitted and tested on these recordings only: other roads, tyres, loads and sensor
-mountings than they hold are not covered by the test. A test part from the same drives
-as the training is easier than a new drive; keep a separate recording for a final check
-(`sideslip-evaluate --model {args.out}{topic_map}{_eval_files(args, found)}`).
-"""
-
-
-def _eval_files(args: argparse.Namespace, found: Any) -> str:
-    if found is None:
-        return " --data NEW_BAGS"
-    ukf = args.out.with_suffix(".ukf.yaml")
-    return f" --data NEW_BAGS --vehicle {args.vehicle} --observer-params {ukf} --car given"
-
-
-def _shipped_note(found: Any) -> str:
-    if found is None:
-        return ""
-    return (
-        " (with the identified axle file). The kinematic baselines are left out: they read "
-        "the lateral velocity, which in these recordings is the reference itself"
-    )

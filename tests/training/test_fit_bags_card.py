@@ -1,0 +1,55 @@
+"""The model card of sideslip-fit --bags: the separate recordings' table and its warning
+when the fitted model's σ is too narrow for them."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from sideslip_training.evaluate import Metrics
+from sideslip_training.fit_bags_card import NARROW_SHARE, Scored, model_card, narrow_interval
+
+FITTED, SHIPPED = "LSTM (my_car)", "LSTM (fleet_ukf_measurable)"
+
+
+def _scored(share: float) -> Scored:
+    rows = {
+        FITTED: Metrics(0.05, 0.0, 0.07, 0.99, 4000),
+        SHIPPED: Metrics(0.06, 0.0, 0.08, 0.98, 4000),
+        "β = 0": Metrics(0.7, 0.0, 0.9, -0.1, 4000),
+    }
+    return Scored(rows, {FITTED: share, SHIPPED: 0.97}, Path("report/test-bags.md"))
+
+
+def _card(new_drives: Scored | None) -> str:
+    args = argparse.Namespace(
+        out=Path("my_car.safetensors"), vehicle=Path("my_car.yaml"), bags=["own/"],
+        topic_map=None, features="measurable", profile="quick",
+        test_bags=["other/"] if new_drives else None,
+    )  # fmt: skip
+    train = {"interval_calibration": {"scale_only": 1.0, "coverage_scale_half": 0.95}}
+    return model_card(args, "recipe", 0.3, None, _scored(0.96), new_drives, train, 12.0)
+
+
+@pytest.mark.parametrize("share", [0.5, NARROW_SHARE - 1e-6])
+def test_a_narrow_sigma_on_the_separate_recordings_is_named_on_the_card(share):
+    assert narrow_interval(_scored(share)) == share
+    card = _card(_scored(share))
+    assert f"**Only {share:.1%} of these samples lie inside the fitted model's ±1.96 σ" in card
+    assert "--test-bags other/" in card
+
+
+@pytest.mark.parametrize("share", [NARROW_SHARE, 0.95, 1.0])
+def test_a_sigma_that_holds_gets_no_warning(share):
+    assert narrow_interval(_scored(share)) is None
+    card = _card(_scored(share))
+    assert "Result on the separate recordings" in card and "**Only" not in card
+    assert f"| {FITTED} | 0.0500 | 0.0700 | 0.990 | {share:.1%} | 4000 |" in card
+
+
+def test_without_separate_recordings_the_card_asks_for_one():
+    card = _card(None)
+    assert "Result on the separate recordings" not in card
+    assert "keep a separate recording for a final check (`--test-bags`" in card
