@@ -51,6 +51,12 @@ from .dataset_report import DatasetReport
 BETA: Final = "beta_rad"
 """Name under which the target β [rad] appears in reports and non-finite counts."""
 
+MIN_REFERENCE_SPEED_MPS: Final = 1.0
+"""Below this forward speed of the reference [m/s] (standstill, creeping, reversing) β
+is no target: atan2(v_y, v_x) of a car at rest is the angle of the reference's noise,
+and the estimator node publishes nothing below its ``min_speed_mps`` (default the same
+1 m/s). A real recording that starts at rest would otherwise train on angles of ±180°."""
+
 
 class DatasetError(ValueError):
     """Bags that cannot make a dataset; the message names the path, bag or setting at fault."""
@@ -159,6 +165,22 @@ def slice_samples(samples: SampleArrays, start: int, stop: int) -> SampleArrays:
     """Rows start:stop of every column."""
     cols = {f.name: getattr(samples, f.name) for f in dataclasses.fields(samples)}
     return SampleArrays(**{k: (None if v is None else v[start:stop]) for k, v in cols.items()})
+
+
+def without_slow_targets(samples: SampleArrays) -> tuple[SampleArrays, int]:
+    """``samples`` with the reference velocity set to NaN (so β is NaN: no window's
+    target, not scored) where its forward speed is below :data:`MIN_REFERENCE_SPEED_MPS`,
+    and how many such samples there were. The sensor channels stay: windows that end at
+    speed still read them."""
+    if not samples.has_truth:
+        return samples, 0
+    slow = samples.truth_v_x_mps < MIN_REFERENCE_SPEED_MPS
+    count = int(np.count_nonzero(slow))
+    if count == 0:
+        return samples, 0
+    v_x, v_y = samples.truth_v_x_mps.copy(), samples.truth_v_y_mps.copy()
+    v_x[slow] = v_y[slow] = np.nan
+    return dataclasses.replace(samples, truth_v_x_mps=v_x, truth_v_y_mps=v_y), count
 
 
 def _nonfinite_counts(samples: SampleArrays, channels: Sequence[str]) -> dict[str, int]:
@@ -285,6 +307,15 @@ def load_runs(
                 f"{rows} sample(s) with NaN/inf ({detail}); no window contains them"
                 if not truthless
                 else f"{rows} sample(s) with NaN/inf ({detail})"
+            )
+            notes.append(note)
+            lines.append(f"{name}: {note}")
+        samples, slow = without_slow_targets(samples)
+        if slow:
+            note = (
+                f"{slow} sample(s) with the reference's forward speed under "
+                f"{MIN_REFERENCE_SPEED_MPS:g} m/s (standstill, creeping, reversing): no β "
+                "target there and not scored; windows that end at speed still read them"
             )
             notes.append(note)
             lines.append(f"{name}: {note}")

@@ -76,7 +76,8 @@ def table_markdown(traces: Sequence[Trace], title: str = "") -> str:
     if notes:
         out.write(
             "\nSamples left out (estimate or reference not finite, e.g. a filter below its "
-            f"speed or a non-finite sample in the bag): {'; '.join(notes)}.\n"
+            "speed, a non-finite sample in the bag, or the reference under 1 m/s, where β "
+            f"is no target): {'; '.join(notes)}.\n"
         )
     return out.getvalue()
 
