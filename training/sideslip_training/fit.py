@@ -108,7 +108,8 @@ def _parser() -> argparse.ArgumentParser:
             "simulated fleet: measurable features identify the UKF's axles on them first; "
             "then fine-tuning ("
             + "; ".join(f"{k}: {v.summary}" for k, v in BAG_RECIPES.items())
-            + ") and a test on every recording's last --test-fraction"
+            + ") and a test on every recording's last --test-fraction (and on --test-bags, other "
+            "recordings of the car, when given)"
         ),
         epilog=(
             "The description (YAML): mass_kg (with usual payload), wheelbase_m, "
