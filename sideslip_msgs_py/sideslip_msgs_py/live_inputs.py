@@ -10,8 +10,9 @@ from . import channels as registry
 from . import topics
 from .errors import BagError
 from .features import feature_set
+from .field_path import field_value
 from .message_fields import FIELDS_RECORDS, stamp_ns
-from .topic_map import FieldSource, TopicMap, field_value, heading_yaw
+from .topic_map import FieldSource, TopicMap, heading_yaw
 
 _PARTNERS = (topics.TWIST, topics.STEERING)
 """The records built before the IMU's, in the order the core takes them."""

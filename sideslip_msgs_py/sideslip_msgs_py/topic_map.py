@@ -3,7 +3,7 @@
 A topic map (YAML) names, for every model channel and for the reference, the topic
 and the field that hold it, with a scale and offset into the channel's unit and, for
 a velocity given in another frame, the heading that turns it into the body frame.
-:func:`read_mapped_bag` reads a bag through it into the same
+:func:`.topic_map_read.read_mapped_bag` reads a bag through it into the same
 :class:`~sideslip_msgs_py.sample.SampleArrays` as :func:`~sideslip_msgs_py.bag.read_bag`
 gives for our own topics, so that training and evaluation never see the difference.
 Units and frames are converted here, once::
@@ -23,6 +23,9 @@ Units and frames are converted here, once::
       v_y_mps: {topic: /ins/velocity, field: vector.y}
       # the INS gives east/north velocity: rotate it by the car's yaw into the body
       heading: {topic: /ins/odometry, field: pose.pose.orientation, kind: quaternion}
+      # where on the car the reference measures, from the CG [m] (x forward, y left):
+      # its velocity is moved to the CG with the yaw rate, v_cg = v_P − r × p
+      position_m: [1.2, 0.0]
 
 Fields are dotted attribute paths of the message (``twist.twist.linear.x``); an index
 selects an array element by position (``position[0]``) or a ``JointState`` joint by
@@ -34,6 +37,12 @@ stamp (as :func:`~sideslip_msgs_py.bag.read_bag` does). Stamps come from
 ``header.stamp`` where a message has one, else from the bag's receive (log) time, and
 the report says so. Missing channels (``y_v_mps`` for a car without a lateral velocity
 sensor) are NaN: the ``measurable`` features do not read them.
+
+The models estimate β at the centre of gravity, where the simulator gives it. A
+reference measured elsewhere (an INS's antenna or an optical sensor on the bumper)
+differs by r·x/v: 1.7° at a yaw rate of 0.3 rad/s, 20 m/s and 2 m ahead of the CG,
+far more than the models' errors; ``reference.position_m`` moves it to the CG with the
+mapped yaw rate.
 """
 
 from __future__ import annotations
@@ -44,18 +53,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-import numpy as np
-import numpy.typing as npt
-
-from . import channels as registry
-from .bag_raw import open_raw_bag
-from .errors import BagError, MissingTopicError
 from .features import CHANNELS
-from .field_path import field_value
-from .message_fields import stamp_ns
-from .sample import SampleArrays
 
 REFERENCE_KEYS: Final = ("beta_rad", "v_x_mps", "v_y_mps")
+MAX_LEVER_ARM_M: Final = 10.0
+"""A reference further from the CG than this [m] is refused as a typo (no car is longer
+than twice this)."""
 _HEADING_KINDS: Final = ("quaternion", "yaw_rad")
 
 
@@ -95,6 +98,8 @@ class TopicMap:
     velocity_heading: HeadingSource | None = None
     reference_heading: HeadingSource | None = None
     source: str = "<topic map>"
+    reference_position_m: tuple[float, float] = (0.0, 0.0)
+    """Where the reference measures, from the CG [m], body frame (x forward, y left)."""
 
     @classmethod
     def load(cls, path: str | Path) -> TopicMap:
@@ -125,6 +130,7 @@ class TopicMap:
             raise TopicMapError(f"{source}: unknown channel(s) {bad}; channels: {list(CHANNELS)}")
         raw_reference = dict(data.get("reference") or {})
         reference_heading = _heading(raw_reference.pop("heading", None), source, "reference")
+        position = _position(raw_reference.pop("position_m", None), source)
         reference = {
             name: _source(spec, source, f"reference.{name}") for name, spec in raw_reference.items()
         }
@@ -139,12 +145,19 @@ class TopicMap:
             )
         if reference_heading is not None and "v_x_mps" not in reference:
             raise TopicMapError(f"{source}: reference.heading needs reference v_x_mps, v_y_mps")
+        if position != (0.0, 0.0) and "yaw_rate_radps" not in channels:
+            raise TopicMapError(
+                f"{source}: reference.position_m needs the yaw_rate_radps channel (the "
+                "reference is moved to the CG with it)"
+            )
         if velocity_heading is not None and not {"x_v_mps", "y_v_mps"} <= set(channels):
             raise TopicMapError(f"{source}: channels.heading needs x_v_mps and y_v_mps")
         clock = str(data.get("clock", "y_a_mps2"))
         if clock not in channels:
             raise TopicMapError(f"{source}: clock {clock!r} is not one of the mapped channels")
-        return cls(channels, reference, clock, velocity_heading, reference_heading, source)
+        return cls(
+            channels, reference, clock, velocity_heading, reference_heading, source, position
+        )
 
     @property
     def topics(self) -> set[str]:
@@ -194,6 +207,23 @@ def _source(spec: Any, source: str, key: str) -> FieldSource:
     )
 
 
+def _position(spec: Any, source: str) -> tuple[float, float]:
+    if spec is None:
+        return (0.0, 0.0)
+    try:
+        x, y = (float(v) for v in spec)
+    except (TypeError, ValueError):
+        raise TopicMapError(
+            f"{source}: reference.position_m must be [x, y] in metres from the CG, got {spec!r}"
+        ) from None
+    if not all(math.isfinite(v) and abs(v) <= MAX_LEVER_ARM_M for v in (x, y)):
+        raise TopicMapError(
+            f"{source}: reference.position_m {spec!r}: each must be finite and within "
+            f"±{MAX_LEVER_ARM_M:g} m of the CG"
+        )
+    return (x, y)
+
+
 def _heading(spec: Any, source: str, where: str) -> HeadingSource | None:
     if spec is None:
         return None
@@ -217,153 +247,3 @@ def heading_yaw(value: Any, kind: str) -> float:
         return float(value)
     x, y, z, w = float(value.x), float(value.y), float(value.z), float(value.w)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-@dataclass
-class _Series:
-    stamp_ns: npt.NDArray[np.int64]
-    values: npt.NDArray[np.float64]
-
-
-def _series(
-    messages: list[tuple[int, Any]], path: str, topic: str, bag: Path, convert: Any
-) -> _Series:
-    stamps = np.empty(len(messages), dtype=np.int64)
-    values = np.empty(len(messages), dtype=np.float64)
-    for i, (stamp, msg) in enumerate(messages):
-        try:
-            values[i] = convert(field_value(msg, path))
-        except (AttributeError, KeyError, IndexError, TypeError, ValueError) as err:
-            raise BagError(f"{bag}: {topic}: field {path!r}: {err}") from None
-        stamps[i] = stamp
-    order = np.argsort(stamps, kind="stable")
-    return _Series(stamps[order], values[order])
-
-
-def _at(series: _Series, stamps: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
-    """The latest value at or before each stamp (NaN before the first)."""
-    idx = np.searchsorted(series.stamp_ns, stamps, side="right") - 1
-    out = series.values[np.maximum(idx, 0)].copy()
-    out[idx < 0] = np.nan
-    return out
-
-
-@dataclass(frozen=True)
-class MappedBag:
-    """What :func:`read_mapped_bag` read: the samples and what was not verbatim."""
-
-    path: Path
-    samples: SampleArrays
-    notes: tuple[str, ...]
-    truncated: bool = False
-
-
-def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
-    """Samples of a bag recorded with any topics, through ``topic_map``.
-
-    Raises:
-        MissingTopicError: a mapped topic is absent or has no message.
-        BagError: a message lacks a mapped field, or cannot be decoded.
-    """
-    from rosbags.typesys import Stores, get_typestore
-
-    from .bag import _deserialize
-
-    path = Path(path)
-    raw = open_raw_bag(path)
-    wanted = topic_map.topics
-    missing = sorted(t for t in wanted if t not in raw.topics or not raw.topics[t].count)
-    if missing:
-        found = sorted(t for t, info in raw.topics.items() if info.count)
-        msg = f"{path}: no messages on mapped topic(s) {missing} (topics with messages: {found})"
-        raise MissingTopicError(msg)
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    decoded: dict[str, list[tuple[int, Any]]] = {t: [] for t in wanted}
-    headerless: set[str] = set()
-    for m in raw.messages(wanted):
-        msgtype = raw.topics[m.topic].msgtype
-        try:
-            msg = _deserialize(typestore, m.data, msgtype)
-        except Exception as err:
-            msg = f"{path}: cannot decode a {msgtype} message on {m.topic}: {err}"
-            raise BagError(msg) from err
-        if hasattr(msg, "header"):
-            stamp = stamp_ns(msg)
-        else:
-            stamp = m.log_time_ns
-            headerless.add(m.topic)
-        decoded[m.topic].append((stamp, msg))
-    notes = list(raw.notes)
-    notes.extend(f"{t}: no header: stamped with the bag's receive time" for t in sorted(headerless))
-
-    def series(src: FieldSource) -> _Series:
-        s = _series(decoded[src.topic], src.field, src.topic, path, float)
-        s.values = s.values * src.scale + src.offset
-        return s
-
-    clock = series(topic_map.channels[topic_map.clock])
-    stamps = clock.stamp_ns
-    if stamps.size > 1 and (np.diff(stamps) == 0).any():
-        raise BagError(f"{path}: the clock topic has repeated stamps; samples need distinct ones")
-    cols = {name: _at(series(src), stamps) for name, src in topic_map.channels.items()}
-    if topic_map.velocity_heading is not None:
-        cols["x_v_mps"], cols["y_v_mps"] = _to_body(
-            cols["x_v_mps"], cols["y_v_mps"], topic_map.velocity_heading, decoded, stamps, path
-        )
-    for name in CHANNELS:
-        if name not in cols:
-            cols[name] = np.full(stamps.shape, np.nan)
-    _derive_other_channels(cols, stamps)
-    ref = topic_map.reference
-    truth: dict[str, npt.NDArray[np.float64]] = {}
-    if "beta_rad" in ref:
-        beta = _at(series(ref["beta_rad"]), stamps)
-        speed = np.where(np.isfinite(cols["x_v_mps"]), cols["x_v_mps"], 1.0)
-        truth = {"truth_v_x_mps": speed, "truth_v_y_mps": speed * np.tan(beta)}
-        notes.append("reference β given: its velocity is X_v · (1, tan β)")
-    elif ref:
-        v_x, v_y = _at(series(ref["v_x_mps"]), stamps), _at(series(ref["v_y_mps"]), stamps)
-        if topic_map.reference_heading is not None:
-            v_x, v_y = _to_body(v_x, v_y, topic_map.reference_heading, decoded, stamps, path)
-        truth = {"truth_v_x_mps": v_x, "truth_v_y_mps": v_y}
-    if truth:
-        truth["truth_yaw_rate_radps"] = cols["yaw_rate_radps"]
-    samples = SampleArrays(stamp_ns=stamps, **cols, **truth)
-    return MappedBag(path, samples, tuple(notes), raw.truncated)
-
-
-def _derive_other_channels(
-    cols: dict[str, npt.NDArray[np.float64]], stamps: npt.NDArray[np.int64]
-) -> None:
-    """The sample columns a topic map does not give (no model input): a rate by
-    differencing its channel (the rack's rate from STL), any other NaN."""
-    for ch in registry.SENSOR:
-        if ch.name in cols:
-            continue
-        if ch.rate_of is None:
-            cols[ch.name] = np.full(stamps.shape, np.nan)
-        elif stamps.size > 2:
-            cols[ch.name] = np.gradient(cols[ch.rate_of], stamps * 1e-9)
-        else:
-            cols[ch.name] = np.zeros(stamps.shape)
-
-
-def _to_body(
-    v_x: npt.NDArray[np.float64],
-    v_y: npt.NDArray[np.float64],
-    heading: HeadingSource,
-    decoded: Mapping[str, list[tuple[int, Any]]],
-    stamps: npt.NDArray[np.int64],
-    path: Path,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """A velocity in a frame where the car's yaw is ``heading``, in the body frame."""
-    yaw_series = _series(
-        decoded[heading.topic],
-        heading.field,
-        heading.topic,
-        path,
-        lambda v: heading_yaw(v, heading.kind),
-    )
-    yaw = _at(yaw_series, stamps)
-    c, s = np.cos(yaw), np.sin(yaw)
-    return c * v_x + s * v_y, -s * v_x + c * v_y

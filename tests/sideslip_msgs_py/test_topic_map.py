@@ -13,7 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sideslip_msgs_py.errors import BagError, MissingTopicError
-from sideslip_msgs_py.topic_map import TopicMap, TopicMapError, read_mapped_bag
+from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
+from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
 
 def test_a_foreign_bag_reads_back_the_body_frame_values_it_was_made_from(tmp_path: Path) -> None:
@@ -68,6 +69,14 @@ def test_a_reference_beta_in_degrees_and_a_joint_by_name(tmp_path: Path) -> None
         ({"clock": "stl_rate"}, "clock 'stl_rate'"),
         ({"extra": 1}, "unknown key(s) ['extra']"),
         ({"channels": {"stl_m": {"topic": "/s", "field": "data", "scale": 0}}}, "non-zero"),
+        (
+            {"reference": {**TOPIC_MAP["reference"], "position_m": [1.2]}},
+            "reference.position_m must be [x, y] in metres from the CG",
+        ),
+        (
+            {"reference": {**TOPIC_MAP["reference"], "position_m": [120.0, 0.0]}},
+            "within ±10 m of the CG",
+        ),
     ],
 )
 def test_a_bad_topic_map_is_refused_naming_the_key(change: dict, named: str) -> None:
@@ -139,3 +148,29 @@ def test_the_live_mapper_forms_a_sample_on_each_clock_message_from_the_latest_va
     assert (imu.stamp_ns, imu.x_a_mps2, imu.y_a_mps2, imu.yaw_rate_radps) == (140, 0.1, 3.0, 0.03)
     with pytest.raises(BagError, match="/v: a mapped field"):
         mapper.on_message("/v", ts.types["std_msgs/msg/String"](data="x"), 150)
+
+
+@settings(max_examples=25, deadline=None)
+@given(x=st.floats(-3.0, 3.0), y=st.floats(-1.0, 1.0), yaw=st.floats(-math.pi, math.pi))
+def test_a_reference_measured_off_the_cg_is_moved_to_the_cg(
+    tmp_path_factory: pytest.TempPathFactory, x: float, y: float, yaw: float
+) -> None:
+    """An INS whose velocity is that of a point (x, y) m from the CG: with
+    ``position_m`` the reference is the CG's velocity and β again, whatever the yaw."""
+    cg = make_truth(200)
+    cg = type(cg)(**{**vars(cg), "yaw": cg.yaw + yaw})
+    # The point's velocity on a rigid body turning at r: v_P = v_cg + r ẑ × (x, y).
+    at_p = type(cg)(**{**vars(cg), "x_v": cg.x_v - cg.r * y, "y_v": cg.y_v + cg.r * x})
+    bag = write_foreign_bag(tmp_path_factory.mktemp("b") / "car", at_p)
+    spec = {**TOPIC_MAP, "reference": {**TOPIC_MAP["reference"], "position_m": [x, y]}}
+    s = read_mapped_bag(bag, TopicMap.from_dict(spec)).samples
+    np.testing.assert_allclose(s.truth_v_x_mps, cg.x_v, atol=1e-9)
+    np.testing.assert_allclose(s.truth_v_y_mps, cg.y_v, atol=1e-9)
+    np.testing.assert_allclose(s.beta_rad(), np.arctan2(cg.y_v, cg.x_v), atol=1e-10)
+
+
+def test_a_reference_off_the_cg_needs_the_yaw_rate() -> None:
+    channels = {k: v for k, v in TOPIC_MAP["channels"].items() if k != "yaw_rate_radps"}
+    reference = {**TOPIC_MAP["reference"], "position_m": [1.0, 0.0]}
+    with pytest.raises(TopicMapError, match="position_m needs the yaw_rate_radps channel"):
+        TopicMap.from_dict({**TOPIC_MAP, "channels": channels, "reference": reference})

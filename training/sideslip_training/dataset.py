@@ -44,7 +44,8 @@ from sideslip_msgs_py.bag import BagContents, read_bag
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.resample import RateError, to_step
 from sideslip_msgs_py.sample import SampleArrays
-from sideslip_msgs_py.topic_map import TopicMap, read_mapped_bag
+from sideslip_msgs_py.topic_map import TopicMap
+from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
 from .dataset_report import DatasetReport
 

@@ -254,7 +254,7 @@ def recorded_rate_hz(data: Sequence[str], topic_map: Path | None) -> float:
     400 Hz, 400."""
     from sideslip_msgs_py.bag import read_bag
     from sideslip_msgs_py.resample import measured_step_s
-    from sideslip_msgs_py.topic_map import read_mapped_bag
+    from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
     from .dataset import find_bags
 
