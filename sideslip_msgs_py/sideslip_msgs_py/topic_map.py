@@ -211,6 +211,8 @@ def _position(spec: Any, source: str) -> tuple[float, float]:
     if spec is None:
         return (0.0, 0.0)
     try:
+        if isinstance(spec, str | Mapping):  # "12" would iterate as 1, 2
+            raise TypeError
         x, y = (float(v) for v in spec)
     except (TypeError, ValueError):
         raise TopicMapError(

@@ -77,6 +77,10 @@ def test_a_reference_beta_in_degrees_and_a_joint_by_name(tmp_path: Path) -> None
             {"reference": {**TOPIC_MAP["reference"], "position_m": [120.0, 0.0]}},
             "within ±10 m of the CG",
         ),
+        (
+            {"reference": {**TOPIC_MAP["reference"], "position_m": "12"}},
+            "reference.position_m must be [x, y]",
+        ),
     ],
 )
 def test_a_bad_topic_map_is_refused_naming_the_key(change: dict, named: str) -> None:

@@ -72,3 +72,17 @@ def test_beta_is_kept_exactly_where_the_reference_moves_forward_at_speed(speeds,
     np.testing.assert_array_equal(kept.beta_rad()[fast], samples.beta_rad()[fast])
     assert np.isnan(kept.beta_rad()[~fast]).all()
     np.testing.assert_array_equal(kept.x_v_mps, samples.x_v_mps)
+
+
+def test_a_recording_never_at_speed_is_refused_naming_the_rule(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    rng = np.random.default_rng(1)
+    folder = tmp_path / "rec"
+    write_arrays("drive", make_arrays(2000, seed=1), folder)
+    parked = make_arrays(2000, seed=2)
+    still = rng.normal(0, 0.02, 2000)
+    write_arrays("parked", dataclasses.replace(parked, truth_v_x_mps=still), folder)
+    runs, report = load_runs([folder])
+    assert [r.bag for r in runs] == ["drive"]
+    assert report.refused == ("parked: reference under 1 m/s throughout",)

@@ -320,6 +320,12 @@ def load_runs(
             )
             notes.append(note)
             lines.append(f"{name}: {note}")
+            if require_truth and not np.isfinite(samples.beta_rad()).any():
+                refused.append(
+                    f"{name}: reference under {MIN_REFERENCE_SPEED_MPS:g} m/s throughout"
+                )
+                lines.append(f"{name}: no β target (never at speed), refused for training")
+                continue
 
         onset = contents.run_metadata.get("spin_onset_s")
         if isinstance(onset, int | float) and not isinstance(onset, bool):
