@@ -276,17 +276,6 @@ def verdicts(summary: Summary, networks: Sequence[Network]) -> list[Verdict]:
 # --- results.json ---------------------------------------------------------------------------
 
 
-def _finite(value: Any) -> Any:
-    """JSON-ready: NaN/inf → None, recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
-
-
 def results_json(
     summary: Summary,
     networks: Sequence[Network],
@@ -295,7 +284,9 @@ def results_json(
     context: Mapping[str, Any],
 ) -> dict[str, Any]:
     """Everything measured, for machines: what ran, per run, per cell, per car, overall."""
-    return _finite(
+    from .evaluate import json_ready
+
+    return json_ready(
         {
             **context,
             "estimators": list(summary.labels),

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -25,6 +24,7 @@ from sideslip_msgs_py.features import FeatureError
 
 from .cli_errors import EXIT_BAD_INPUT, CliError
 from .dataset import DatasetError
+from .evaluate import json_ready
 from .export import export_model
 from .final_model import model_metadata, refit, wants_refit
 from .init_model import InitError
@@ -100,7 +100,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     total = time.perf_counter() - started
     summary = {**metrics, "wall_s": total, "out": str(args.out), "run_dir": str(plan.run_dir)}
     # Strict JSON for any reader: an undefined figure (R² of a straight run) is null.
-    text = json.dumps(_finite(summary), indent=2, allow_nan=False)
+    text = json.dumps(json_ready(summary), indent=2, allow_nan=False)
     (plan.run_dir / "metrics.json").write_text(text + "\n")
     log(
         f"wrote {args.out}: validation MAE {metrics['val_mae_deg']:.4f} deg, "
@@ -210,14 +210,3 @@ def _warn_if_still_improving(result: TrainResult, metrics: dict[str, Any]) -> No
             file=sys.stderr,
         )
         metrics["still_improving"] = True
-
-
-def _finite(value: Any) -> Any:
-    """``value`` with every non-finite float (at any depth) replaced by None."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value

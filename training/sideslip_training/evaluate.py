@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -51,6 +52,17 @@ def metrics_json(m: Metrics) -> dict[str, float | int | None]:
         k: (None if isinstance(v, float) and not math.isfinite(v) else v)
         for k, v in asdict(m).items()
     }
+
+
+def json_ready(value: Any) -> Any:
+    """``value`` for strict JSON: every non-finite float (at any depth) becomes None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    return value
 
 
 def metrics_deg(estimate_rad: FloatArray, reference_rad: FloatArray) -> Metrics:
