@@ -177,6 +177,7 @@ def scored_traces(
     models: Sequence[Path],
     ukf_file: Path | None,
     described_ukf: Path | None,
+    runs: Sequence[Any] | None = None,
 ) -> tuple[list[Any], list[str]]:
     """Every estimator's traces on each recording's test part (its last ``fraction``, as
     ``sideslip-train`` cut it; ``None``: the whole recording), resampled to the models'
@@ -192,7 +193,8 @@ def scored_traces(
     loaded = [load_model(m) for m in models]
     meta = loaded[0][1]
     labels = [f"{model_label(m)} ({p.stem})" for (_, m), p in zip(loaded, models, strict=True)]
-    runs, _ = _load(args, bags, step_s=meta.dt_s)
+    if runs is None:
+        runs, _ = _load(args, bags, step_s=meta.dt_s)
     tail = runs if fraction is None else split_in_time(runs, fraction, "test")[1]
     tail = [r for r in tail if len(r.samples) >= meta.window_steps]
     if not tail:
@@ -229,15 +231,16 @@ def scored_traces(
     return traces, labels
 
 
-def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> None:
+def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> list[Any]:
     """Read ``--test-bags`` as they will be scored (at the model's step), before anything
     is trained. Raises CliError (or DatasetError) when one is also a bag of ``--bags``
     (after resolving folders and links), when one is refused by the loader, or when one
-    holds no stretch of a full window: every named test bag is scored, or none."""
+    holds no stretch of a full window: every named test bag is scored, or none. Returns
+    the runs, which the scoring after training uses (read once)."""
     from .dataset import find_bags
 
     if not args.test_bags:
-        return
+        return []
     shared = sorted(set(find_bags(args.bags)) & set(find_bags(args.test_bags)))
     if shared:
         raise CliError(
@@ -256,6 +259,7 @@ def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> None:
             "window at the model's step: record longer or leave it out"
         )
     log(f"--test-bags: {report}")
+    return runs
 
 
 def run(
@@ -292,7 +296,7 @@ def run(
             raise CliError(f"--out {args.out}: name the fitted model other than {shipped}")
         _, meta = load_model(resolve(shipped))
         window_s = meta.window_steps * meta.dt_s
-        check_test_bags(args, meta, log)
+        test_runs = check_test_bags(args, meta, log)  # read once, at the models' step
         # Nothing of an earlier fit may stay beside this one's model.
         args.out.with_suffix(".md").unlink(missing_ok=True)
         shutil.rmtree(report, ignore_errors=True)
@@ -327,7 +331,9 @@ def run(
         new_drives = None
         if args.test_bags:
             stage(log, started, "scoring on --test-bags")
-            traces, _ = scored_traces(args, args.test_bags, None, models, ukf_file, described)
+            traces, _ = scored_traces(
+                args, args.test_bags, None, models, ukf_file, described, test_runs
+            )
             new_drives = _scored(
                 traces, labels, report / "test-bags.md", f"{desc.name}: --test-bags"
             )
