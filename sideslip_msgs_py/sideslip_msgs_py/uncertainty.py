@@ -13,6 +13,13 @@ c ≥ 0 are fitted by Gaussian likelihood on validation data and ``s`` is a conf
 scale from other validation bags, so that the interval ±1.96 σ holds 95 % of their
 samples (``sideslip-calibrate``). Stored in the model file (``ModelMetadata.uncertainty``)
 and evaluated per sample by the estimator.
+
+A model fine-tuned on one car's recordings may carry a :class:`FitRange`: the range of
+lateral acceleration and sideslip rate its recordings covered. Its scale, fitted on those
+recordings, holds inside that range; while the input window reaches beyond it (a limit
+manoeuvre the recordings lack) the network extrapolates, and the larger
+``outside_scale`` is used instead (``sideslip-train`` sets it from the start model's
+fleet scale).
 """
 
 from __future__ import annotations
@@ -34,10 +41,20 @@ TERMS: Final = (
 )
 MIN_SPEED_MPS: Final = 1.0
 Z_95: Final = 1.959963984540054
+FIT_RANGE_QUANTILE: Final = 0.999
+"""The share of a car's samples a :class:`FitRange` spans: the largest values are single
+noise spikes (the paper's a_y noise alone has σ 0.1 m/s² per sample), not driving."""
 
 
 class UncertaintyError(ValueError):
     """An uncertainty model that cannot be used (the message names the field)."""
+
+
+def _beta_rate(
+    v: npt.NDArray[np.float64], a_y: npt.ArrayLike, r: npt.ArrayLike
+) -> npt.NDArray[np.float64]:
+    """β̇ ≈ a_y / X_v − ψ̇ [rad/s] (X_v already floored)."""
+    return np.asarray(a_y, dtype=np.float64) / v - np.asarray(r, dtype=np.float64)
 
 
 def terms(
@@ -46,8 +63,119 @@ def terms(
     """The model's terms per sample, shape (n, 4) in :data:`TERMS` order."""
     v = np.maximum(np.asarray(x_v_mps, dtype=np.float64), MIN_SPEED_MPS)
     a_y = np.asarray(y_a_mps2, dtype=np.float64)
-    beta_rate = a_y / v - np.asarray(yaw_rate_radps, dtype=np.float64)
+    beta_rate = _beta_rate(v, a_y, yaw_rate_radps)
     return np.stack([np.ones_like(v), 1.0 / v**2, a_y**2, beta_rate**2], axis=-1)
+
+
+@dataclass(frozen=True)
+class FitRange:
+    """The driving a fine-tuned model's scale was fitted on: |a_y| ≤
+    ``lateral_acceleration_mps2`` [m/s²] and |β̇| ≤ ``beta_rate_radps`` [rad/s]
+    (β̇ ≈ a_y / X_v − ψ̇, as in :func:`terms`). While any sample of the network's input
+    window (the last ``window_steps``) lies beyond it, σ takes ``outside_scale`` when
+    that is the larger: the network's error outlives the sample that caused it."""
+
+    lateral_acceleration_mps2: float
+    beta_rate_radps: float
+    outside_scale: float
+    window_steps: int = 1
+
+    def __post_init__(self) -> None:
+        for name, least in (
+            ("lateral_acceleration_mps2", ">= 0"),
+            ("beta_rate_radps", ">= 0"),
+            ("outside_scale", "> 0"),
+        ):
+            value = getattr(self, name)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            if not (ok and (value > 0.0 or (value == 0.0 and least == ">= 0"))):
+                raise UncertaintyError(f"uncertainty.fit_range: {name} must be finite and "
+                                       f"{least}, got {value!r}")  # fmt: skip
+            object.__setattr__(self, name, float(value))
+        steps = self.window_steps
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise UncertaintyError(
+                f"uncertainty.fit_range: window_steps must be an integer >= 1, got {steps!r}"
+            )
+
+    @classmethod
+    def of_samples(
+        cls,
+        x_v_mps: npt.ArrayLike,
+        y_a_mps2: npt.ArrayLike,
+        yaw_rate_radps: npt.ArrayLike,
+        outside_scale: float,
+        window_steps: int,
+        quantile: float = FIT_RANGE_QUANTILE,
+    ) -> FitRange:
+        """The range spanned by the samples at speed (X_v ≥ 1 m/s, where β is a target)."""
+        v = np.asarray(x_v_mps, dtype=np.float64)
+        a_y = np.asarray(y_a_mps2, dtype=np.float64)
+        r = np.asarray(yaw_rate_radps, dtype=np.float64)
+        ok = (v >= MIN_SPEED_MPS) & np.isfinite(v) & np.isfinite(a_y) & np.isfinite(r)
+        if not ok.any():
+            raise UncertaintyError("uncertainty.fit_range: no sample at 1 m/s or more")
+        beta_rate = _beta_rate(v[ok], a_y[ok], r[ok])
+        return cls(
+            float(np.quantile(np.abs(a_y[ok]), quantile)),
+            float(np.quantile(np.abs(beta_rate), quantile)),
+            outside_scale,
+            window_steps,
+        )
+
+    def beyond(
+        self, x_v_mps: npt.ArrayLike, y_a_mps2: npt.ArrayLike, yaw_rate_radps: npt.ArrayLike
+    ) -> npt.NDArray[np.bool_]:
+        """Per sample: this sample lies beyond the range."""
+        v = np.maximum(np.asarray(x_v_mps, dtype=np.float64), MIN_SPEED_MPS)
+        a_y = np.asarray(y_a_mps2, dtype=np.float64)
+        return (np.abs(a_y) > self.lateral_acceleration_mps2) | (
+            np.abs(_beta_rate(v, a_y, yaw_rate_radps)) > self.beta_rate_radps
+        )
+
+    def window_beyond(
+        self,
+        x_v_mps: npt.ArrayLike,
+        y_a_mps2: npt.ArrayLike,
+        yaw_rate_radps: npt.ArrayLike,
+        run: npt.ArrayLike | None = None,
+    ) -> npt.NDArray[np.bool_]:
+        """Per sample: a sample of its trailing window (``window_steps``, itself
+        included) lies beyond the range. Samples are in time order; ``run`` gives each
+        sample's run (contiguous ids; the window restarts with each run; default one run)."""
+        out = self.beyond(x_v_mps, y_a_mps2, yaw_rate_radps)
+        ids = np.zeros(out.size, np.int64) if run is None else np.asarray(run)
+        starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+        for a, b in zip(starts, np.r_[starts[1:], out.size], strict=True):
+            count = np.concatenate([[0], np.cumsum(out[a:b])])
+            k = np.arange(1, b - a + 1)
+            out[a:b] = count[k] - count[np.maximum(k - self.window_steps, 0)] > 0
+        return out
+
+    def to_dict(self) -> dict[str, float | int]:
+        return {
+            "lateral_acceleration_mps2": self.lateral_acceleration_mps2,
+            "beta_rate_radps": self.beta_rate_radps,
+            "outside_scale": self.outside_scale,
+            "window_steps": self.window_steps,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any) -> FitRange:
+        if not isinstance(data, Mapping):
+            raise UncertaintyError(
+                f"uncertainty.fit_range must be a JSON object, got {type(data).__name__}"
+            )
+        keys = {"lateral_acceleration_mps2", "beta_rate_radps", "outside_scale", "window_steps"}
+        if set(data) != keys:
+            raise UncertaintyError(f"uncertainty.fit_range: keys must be {sorted(keys)}, "
+                                   f"got {sorted(data)}")  # fmt: skip
+        return cls(
+            data["lateral_acceleration_mps2"],
+            data["beta_rate_radps"],
+            data["outside_scale"],
+            data["window_steps"],
+        )
 
 
 @dataclass(frozen=True)
@@ -59,6 +187,8 @@ class Uncertainty:
     coverage: float = 0.95
     """The share of calibration samples within ±1.96 σ that ``scale`` was chosen for."""
     kind: str = KIND
+    fit_range: FitRange | None = None
+    """Where ``scale`` holds, for a model fine-tuned on one car (None: everywhere)."""
 
     def __post_init__(self) -> None:
         if self.kind != KIND:
@@ -82,33 +212,61 @@ class Uncertainty:
         object.__setattr__(self, "coverage", float(self.coverage))
 
     def variance(
-        self, x_v_mps: npt.ArrayLike, y_a_mps2: npt.ArrayLike, yaw_rate_radps: npt.ArrayLike
+        self,
+        x_v_mps: npt.ArrayLike,
+        y_a_mps2: npt.ArrayLike,
+        yaw_rate_radps: npt.ArrayLike,
+        run: npt.ArrayLike | None = None,
     ) -> npt.NDArray[np.float64]:
-        """σ² [rad²] per sample."""
+        """σ² [rad²] per sample. With a :attr:`fit_range` the samples must be in time
+        order, ``run`` (contiguous ids) telling runs apart (default: one run)."""
         t = terms(x_v_mps, y_a_mps2, yaw_rate_radps)
-        return self.scale**2 * (t @ np.asarray(self.coefficients))
+        scale: float | npt.NDArray[np.float64] = self.scale
+        if self.fit_range is not None:
+            beyond = self.fit_range.window_beyond(x_v_mps, y_a_mps2, yaw_rate_radps, run)
+            scale = np.where(beyond, max(self.scale, self.fit_range.outside_scale), self.scale)
+        return scale**2 * (t @ np.asarray(self.coefficients))
 
     def variance_of(self, x_v_mps: float, y_a_mps2: float, yaw_rate_radps: float) -> float:
-        """σ² [rad²] of one sample (the estimator's path: plain floats, no arrays)."""
+        """σ² [rad²] of one sample with its own scale, whatever :attr:`fit_range` says
+        (the estimator's path: plain floats, no arrays; see :meth:`variance_of_window`)."""
         v = max(x_v_mps, MIN_SPEED_MPS)
         beta_rate = y_a_mps2 / v - yaw_rate_radps
         c0, c1, c2, c3 = self.coefficients
         return self.scale**2 * (c0 + c1 / (v * v) + c2 * y_a_mps2**2 + c3 * beta_rate**2)
 
+    def variance_of_window(
+        self, x_v_mps: npt.ArrayLike, y_a_mps2: npt.ArrayLike, yaw_rate_radps: npt.ArrayLike
+    ) -> float:
+        """σ² [rad²] of the newest sample of an input window (samples in time order): as
+        :meth:`variance_of`, widened while the window reaches beyond :attr:`fit_range`."""
+        v, a_y, r = (np.asarray(a, dtype=np.float64) for a in (x_v_mps, y_a_mps2, yaw_rate_radps))
+        var = self.variance_of(float(v[-1]), float(a_y[-1]), float(r[-1]))
+        fit = self.fit_range
+        if fit is None or fit.outside_scale <= self.scale:
+            return var
+        n = fit.window_steps
+        if fit.beyond(v[-n:], a_y[-n:], r[-n:]).any():
+            return var * (fit.outside_scale / self.scale) ** 2
+        return var
+
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "kind": self.kind,
             "terms": list(TERMS),
             "coefficients": list(self.coefficients),
             "scale": self.scale,
             "coverage": self.coverage,
         }
+        if self.fit_range is not None:
+            out["fit_range"] = self.fit_range.to_dict()
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Uncertainty:
         if not isinstance(data, Mapping):
             raise UncertaintyError(f"uncertainty must be a JSON object, got {type(data).__name__}")
-        unknown = set(data) - {"kind", "terms", "coefficients", "scale", "coverage"}
+        unknown = set(data) - {"kind", "terms", "coefficients", "scale", "coverage", "fit_range"}
         if unknown:
             raise UncertaintyError(f"uncertainty: unknown key(s) {sorted(unknown)}")
         if list(data.get("terms", TERMS)) != list(TERMS):
@@ -119,6 +277,7 @@ class Uncertainty:
                 float(data["scale"]),
                 float(data.get("coverage", 0.95)),
                 str(data.get("kind", KIND)),
+                None if data.get("fit_range") is None else FitRange.from_dict(data["fit_range"]),
             )
         except (KeyError, TypeError) as err:
             raise UncertaintyError(f"uncertainty: missing or malformed {err}") from None

@@ -45,6 +45,7 @@ def write_model(
     window: int = WINDOW,
     metrics: dict | None = None,
     seed: int = 0,
+    uncertainty: dict | None = None,
 ) -> Path:
     features = FEATURE_SETS[feature_set]
     torch.manual_seed(seed)
@@ -71,6 +72,7 @@ def write_model(
         beta_std=0.03,
         training_data_digest="sha256:0123456789abcdef",
         metrics={"val_rmse_deg": 0.4} if metrics is None else metrics,
+        uncertainty=uncertainty,
     )
     return export_model(path, net, meta)
 
@@ -167,6 +169,27 @@ def test_variance_is_the_validation_rmse_squared_else_the_stated_default(tmp_pat
     without = write_model(tmp_path / "b.safetensors", metrics={})
     est = PsoLstmBackend({"model_file": str(without)}, WINDOW).update(rows, stamps)
     assert est is not None and est.variance_rad2 == DEFAULT_SIGMA_RAD**2
+
+
+def test_sigma_widens_while_the_window_reaches_beyond_the_fitted_recordings(
+    tmp_path: Path,
+) -> None:
+    """A model fine-tuned on one car's gentle recordings: its own scale while the
+    window's driving is like theirs, the wider one while any sample of it is not."""
+    from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
+
+    unc = Uncertainty(
+        (1e-8, 2.7e-5, 1.2e-7, 4.8e-4), 0.5, fit_range=FitRange(5.0, 1.0, 2.0, WINDOW)
+    )
+    path = write_model(tmp_path / "fitted.safetensors", uncertainty=unc.to_dict())
+    rows, stamps = make_rows(WINDOW)  # |a_y| ≤ 4 m/s²: inside
+    own = unc.variance_of(*(float(rows[-1, i]) for i in (0, 3, 4)))
+    est = PsoLstmBackend({"model_file": str(path)}, WINDOW).update(rows, stamps)
+    assert est is not None and est.variance_rad2 == pytest.approx(own, rel=1e-12)
+    rows = rows.copy()
+    rows[0, 3] = 7.0  # the oldest sample of the window at 7 m/s²: beyond
+    est = PsoLstmBackend({"model_file": str(path)}, WINDOW).update(rows, stamps)
+    assert est is not None and est.variance_rad2 == pytest.approx(own * 16.0, rel=1e-12)
 
 
 def test_model_id_names_the_file_architecture_and_data(tmp_path: Path) -> None:

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sideslip_msgs_py.uncertainty import Uncertainty, UncertaintyError, terms
+from sideslip_msgs_py.uncertainty import FitRange, Uncertainty, UncertaintyError, terms
 
 UNC = Uncertainty((1e-8, 2.5e-4, 8e-8, 1.5e-4), 1.09)
 
@@ -42,8 +43,83 @@ def test_sigma_is_finite_positive_and_the_same_on_both_paths(
         ({"coefficients": [1, 2, 3, 4], "scale": 0.0}, "scale must be"),
         ({"coefficients": [1, 2, 3, 4], "scale": 1.0, "kind": "ensemble"}, "unknown kind"),
         ({"coefficients": [1, 2, 3, 4], "scale": 1.0, "extra": 1}, "unknown key"),
+        ({"coefficients": [1, 2, 3, 4], "scale": 1.0, "fit_range": [1, 2]}, "fit_range must be"),
+        (
+            {"coefficients": [1, 2, 3, 4], "scale": 1.0, "fit_range": {"outside_scale": 1.0}},
+            "fit_range: keys must be",
+        ),
+        (
+            {
+                "coefficients": [1, 2, 3, 4],
+                "scale": 1.0,
+                "fit_range": {
+                    "lateral_acceleration_mps2": float("nan"),
+                    "beta_rate_radps": 0.1,
+                    "outside_scale": 1.2,
+                    "window_steps": 100,
+                },
+            },
+            "lateral_acceleration_mps2 must be finite",
+        ),
     ],
 )
 def test_a_bad_uncertainty_model_is_refused_naming_the_field(data: dict, named: str) -> None:
     with pytest.raises(UncertaintyError, match=named):
         Uncertainty.from_dict(data)
+
+
+RANGED = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.05, 1.3))
+
+
+@given(v=st.floats(0.0, 80.0), a_y=st.floats(-15.0, 15.0), r=st.floats(-1.5, 1.5))
+def test_beyond_the_fit_range_sigma_takes_the_larger_scale(v: float, a_y: float, r: float) -> None:
+    one = RANGED.variance_of_window([v], [a_y], [r])
+    assert RANGED.variance([v], [a_y], [r])[0] == pytest.approx(one, rel=1e-12)
+    assert RANGED.variance_of_window([v], [-a_y], [-r]) == pytest.approx(one, rel=1e-12)
+    plain = Uncertainty(UNC.coefficients, 0.8).variance_of(v, a_y, r)
+    assert RANGED.variance_of(v, a_y, r) == pytest.approx(plain, rel=1e-12)
+    beyond = bool(RANGED.fit_range.beyond([v], [a_y], [r])[0])  # type: ignore[union-attr]
+    assert one == pytest.approx(plain * (1.3 / 0.8) ** 2 if beyond else plain, rel=1e-12)
+
+
+def test_sigma_stays_wide_while_the_window_holds_a_sample_beyond_the_range() -> None:
+    unc = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.5, 1.6, window_steps=5))
+    v, r = np.full(12, 20.0), np.zeros(12)
+    a_y = np.zeros(12)
+    a_y[3] = 6.0  # one sample beyond |a_y| ≤ 4: samples 3..7 see it in their window
+    wide = unc.variance(v, a_y, r) > 1.01 * Uncertainty(UNC.coefficients, 0.8).variance(v, a_y, r)
+    assert wide.tolist() == [False] * 3 + [True] * 5 + [False] * 4
+    # A new run restarts the window: what lay beyond in the last run is forgotten.
+    run = np.repeat([0, 1], 6)
+    wide_runs = unc.fit_range.window_beyond(v, a_y, r, run)  # type: ignore[union-attr]
+    assert wide_runs.tolist() == [False] * 3 + [True] * 3 + [False] * 6
+    # The estimator's path gives the newest sample of each window the same σ.
+    online = [unc.variance_of_window(v[max(0, k - 4) : k + 1], a_y[max(0, k - 4) : k + 1],
+                                     r[max(0, k - 4) : k + 1]) for k in range(12)]  # fmt: skip
+    assert online == pytest.approx(unc.variance(v, a_y, r).tolist(), rel=1e-12)
+
+
+def test_an_outside_scale_below_the_cars_own_never_narrows_sigma() -> None:
+    narrower = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.05, 0.5))
+    plain = Uncertainty(UNC.coefficients, 0.8)
+    assert narrower.variance_of_window([20.0], [9.0], [0.4]) == plain.variance_of(20.0, 9.0, 0.4)
+    assert narrower.variance([20.0], [9.0], [0.4])[0] == pytest.approx(
+        plain.variance_of(20.0, 9.0, 0.4), rel=1e-12
+    )
+
+
+def test_the_fit_range_spans_the_samples_at_speed_and_survives_the_model_file() -> None:
+    rng = np.random.default_rng(0)
+    v = np.concatenate([rng.uniform(5.0, 30.0, 5000), np.zeros(50)])  # parked: ignored
+    a_y = np.concatenate([rng.uniform(-3.0, 3.0, 5000), np.full(50, 9.0)])
+    r = a_y / np.maximum(v, 1.0)  # steady cornering: β̇ ≈ 0
+    fit = FitRange.of_samples(v, a_y, r, outside_scale=1.2, window_steps=100)
+    assert 2.9 < fit.lateral_acceleration_mps2 <= 3.0
+    assert fit.beta_rate_radps < 1e-9 and fit.window_steps == 100
+    unc = Uncertainty(UNC.coefficients, 0.9, fit_range=fit)
+    assert Uncertainty.from_dict(unc.to_dict()) == unc
+    assert "fit_range" not in UNC.to_dict()
+    with pytest.raises(UncertaintyError, match="no sample at 1 m/s"):
+        FitRange.of_samples([0.5], [1.0], [0.0], outside_scale=1.0, window_steps=1)
+    with pytest.raises(UncertaintyError, match="window_steps must be an integer"):
+        FitRange(1.0, 1.0, 1.0, window_steps=0)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
 from sideslip_training.evaluate import Metrics
 from sideslip_training.fit_bags_card import NARROW_SHARE, Scored, model_card, narrow_interval
 
@@ -53,3 +54,17 @@ def test_without_separate_recordings_the_card_asks_for_one():
     card = _card(None)
     assert "Result on the separate recordings" not in card
     assert "keep a separate recording for a final check (`--test-bags`" in card
+
+
+def test_the_card_says_where_the_cars_sigma_holds_and_what_it_widens_to_beyond():
+    args = argparse.Namespace(
+        out=Path("my_car.safetensors"), vehicle=Path("my_car.yaml"), bags=["own/"],
+        topic_map=None, features="measurable", profile="quick", test_bags=None,
+    )  # fmt: skip
+    train = {"interval_calibration": {"scale_only": 1.0, "coverage_scale_half": 0.95}}
+    fit = FitRange(3.9, 0.14, 2.47, window_steps=100)
+    unc = Uncertainty((1e-8, 2.7e-5, 1.2e-7, 4.8e-4), 0.8, fit_range=fit).to_dict()
+    card = model_card(args, "recipe", 0.3, None, _scored(0.96), None, train, 12.0, unc)
+    assert "(|a_y| ≤ 3.90 m/s², |β̇| ≤ 0.140 rad/s)" in card
+    assert "σ uses scale 2.47 (2 × the shipped model's)" in card
+    assert "|a_y| ≤" not in _card(None)

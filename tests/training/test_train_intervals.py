@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sideslip_msgs_py.artifact import read_artifact
@@ -26,7 +27,8 @@ def test_fine_tuning_keeps_the_start_models_sigma_terms_and_refits_their_scale(
 ) -> None:
     # One recording split in time: validation is the stretch before the test, and the
     # exported model is refit on it, so σ comes from the model chosen before the refit.
-    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
+    arrays = make_arrays(4000, seed=3)
+    write_arrays("drive", arrays, folder=tmp_path / "rec")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "rec"), "--init", "fleet_lstm_paper"]
     assert train_main([*args, "--test-fraction", "0.3", "--out", str(out), *TINY]) == 0
@@ -34,6 +36,12 @@ def test_fine_tuning_keeps_the_start_models_sigma_terms_and_refits_their_scale(
     mine = _uncertainty(out)
     assert start is not None and mine is not None
     assert mine.coefficients == start.coefficients and mine.scale != start.scale
+    # Beyond the recordings' driving σ takes twice the start's scale when that is wider.
+    fit = mine.fit_range
+    assert fit is not None and fit.outside_scale == pytest.approx(2.0 * start.scale)
+    assert fit.window_steps == read_artifact(out)[1].window_steps
+    first_70 = np.abs(arrays.y_a_mps2[:2800])
+    assert fit.lateral_acceleration_mps2 == pytest.approx(np.quantile(first_70, 0.999), rel=0.05)
     metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
     calibration = metrics["interval_calibration"]
     assert calibration["scale_only"] == 1.0 and calibration["fit_bags"] == 1.0

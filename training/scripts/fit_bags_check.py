@@ -19,6 +19,10 @@ Writes ``OUT/summary.json`` and prints a markdown table.
 ``sideslip_sim.held_out`` order), their own driving with the learning curve's seed (7,
 ``held_out_curve.py``), scored on their 18 benchmark runs each (``--val-data
 data/held-out``). A held-out car is scored so once; nothing is chosen on it.
+
+``--own-peak-ay A``: the owner who never drove near the limit. Only the own runs whose
+peak |a_y| stays at or under A m/s² are given to the fit (``OUT/CAR/own`` then links to
+those bags of ``OUT/CAR/own-all``); the new drives are the same.
 """
 
 from __future__ import annotations
@@ -61,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("data/fit-bags-check"))
     p.add_argument("--fit-args", default="", help="more sideslip-fit options")
     p.add_argument("--held-out", action="store_true", help="the six held-out cars (see above)")
+    p.add_argument("--own-peak-ay", type=float, default=None, help="keep gentle own runs only")
     args = p.parse_args(argv)
     if args.held_out:
         cars = list(held_out_vehicles().values())
@@ -71,12 +76,18 @@ def main(argv: list[str] | None = None) -> int:
         car = cars[k]
         work = args.out / car.name
         own = work / "own"
-        if not (own / "index.json").exists():
+        generated = own if args.own_peak_ay is None else work / "own-all"
+        if not (generated / "index.json").exists():
             seed = HELD_OUT_OWN_SEED if args.held_out else OWN_SEED + k
             runs = own_runs(car, args.minutes, seed)
             runs = runs[: len(first_minutes(runs, args.minutes))]
-            prepare_output(own, force=True)
-            generate(runs, own, seed=seed, preset_name="own driving", jobs=1, progress=False)
+            prepare_output(generated, force=True)
+            generate(runs, generated, seed=seed, preset_name="own driving", jobs=1, progress=False)
+        if args.own_peak_ay is not None and not own.exists():
+            own.mkdir()
+            for r in json.loads((generated / "index.json").read_text())["runs"]:
+                if r["peak_abs_ay_mps2"] <= args.own_peak_ay:
+                    (own / r["bag"]).symlink_to((generated / r["bag"]).resolve())
         desc = work / "description.yaml"
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
         out = work / "fitted.safetensors"

@@ -126,7 +126,7 @@ def conformal_scale(errors: Errors, coefficients: Sequence[float], coverage: flo
 def coverage_of(errors: Errors, unc: Uncertainty) -> tuple[float, FloatArray]:
     """Share of samples within ±z·σ, pooled and per run."""
     inside = np.abs(errors.err) <= z_of(unc.coverage) * np.sqrt(
-        unc.variance(errors.v, errors.ay, errors.r)
+        unc.variance(errors.v, errors.ay, errors.r, errors.run)
     )
     per_run = np.array([inside[errors.run == i].mean() for i in np.unique(errors.run)])
     return float(inside.mean()), per_run

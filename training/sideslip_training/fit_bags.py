@@ -360,8 +360,11 @@ def run(
         summary["test_bags_pooled"] = _pooled_json(new_drives)
     (report / "metrics.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
+    from sideslip_msgs_py.artifact import read_artifact
+
     card = model_card(args, recipe.summary, fraction, found, test_part, new_drives,
-                      train_metrics, time.perf_counter() - started)  # fmt: skip
+                      train_metrics, time.perf_counter() - started,
+                      read_artifact(args.out)[1].uncertainty)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0

@@ -33,9 +33,11 @@ def model_card(
     new_drives: Scored | None,
     train_metrics: dict[str, Any],
     seconds: float,
+    uncertainty: dict[str, Any] | None = None,
 ) -> str:
     """The card: data, σ, deployment, the test part's table, the separate recordings'
-    table (``--test-bags``) when given, and the limits."""
+    table (``--test-bags``) when given, and the limits. ``uncertainty``: the model's
+    (its metadata's), to state where its σ holds."""
     ukf = args.out.with_suffix(".ukf.yaml")
     car_files = (
         f" -p pso_lstm.vehicle_file:={args.vehicle} -p pso_lstm.observer_params_file:={ukf}"
@@ -68,7 +70,7 @@ Fitted by `sideslip-fit --vehicle {args.vehicle} --bags {" ".join(args.bags)}{to
 The car's own recordings, each split in time: the first {1 - fraction:.0%} for
 identification and fine-tuning ({recipe_summary}, `--split time`: the validation part
 is the stretch before the test), the last {fraction:.0%} for the test below and nothing
-else.{axles}{kept}{_sigma(train_metrics)}
+else.{axles}{kept}{_sigma(train_metrics, uncertainty)}
 
 ## Deploy
 
@@ -135,7 +137,11 @@ Per recording: `{scored.table}`.
 """
 
 
-def _sigma(train_metrics: dict[str, Any]) -> str:
+def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
+    from sideslip_msgs_py.uncertainty import Uncertainty
+
+    from .train_intervals import OUTSIDE_FACTOR
+
     calibration = train_metrics.get("interval_calibration")
     if not calibration:
         return "\n\nIt carries no per-sample σ: the node publishes its validation RMSE²."
@@ -144,11 +150,20 @@ def _sigma(train_metrics: dict[str, Any]) -> str:
         if calibration["scale_only"]
         else "σ terms and scale, on halves of the recordings,"
     )
-    return (
+    text = (
         f"\n\nIts σ (published in `/sideslip/twist`): {terms} fitted on the validation "
         "stretch with the model chosen before the refit, which had not trained on it "
         f"({calibration['coverage_scale_half']:.1%} of that stretch inside ±1.96 σ)."
     )
+    fit = None if stored is None else Uncertainty.from_dict(stored).fit_range
+    if fit is not None:
+        text += (
+            f" That scale holds for driving like the recordings' (|a_y| ≤ "
+            f"{fit.lateral_acceleration_mps2:.2f} m/s², |β̇| ≤ {fit.beta_rate_radps:.3f} rad/s); "
+            f"while the input window reaches beyond, σ uses scale {fit.outside_scale:.2f} "
+            f"({OUTSIDE_FACTOR:g} × the shipped model's) where that is wider."
+        )
+    return text
 
 
 def _limits(args: argparse.Namespace, found: Any, topic_map: str, new_drives: bool) -> str:

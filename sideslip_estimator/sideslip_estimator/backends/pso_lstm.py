@@ -286,6 +286,10 @@ class PsoLstmBackend:
         the validation RMSE² for a model without one."""
         if self._uncertainty is None:
             return self.variance_rad2
+        if self._uncertainty.fit_range is not None:
+            return self._uncertainty.variance_of_window(
+                rows[:, _X_V], rows[:, _Y_A], rows[:, _YAW_RATE]
+            )
         row = rows[-1]
         return self._uncertainty.variance_of(
             float(row[_X_V]), float(row[_Y_A]), float(row[_YAW_RATE])
