@@ -79,6 +79,13 @@ def test_the_fitted_model_publishes_a_calibrated_sigma_and_the_card_says_how_it_
     card = out.with_suffix(".md").read_text()
     assert "inside ±1.96 σ" in card and f"{inside[models['fitted']]:.1%}" in card
     assert "fitted on the validation stretch" in card
+    # Where that σ holds: the recordings' range, beyond it twice the shipped scale.
+    fit = mine.uncertainty["fit_range"]
+    assert fit["window_steps"] == mine.window_steps
+    assert fit["outside_scale"] == pytest.approx(2.0 * shipped.uncertainty["scale"])
+    assert f"|a_y| ≤ {fit['lateral_acceleration_mps2']:.2f} m/s²" in card
+    gentle = fit["lateral_acceleration_mps2"] < 5.0
+    assert ("The recordings stay under" in card) == gentle
 
 
 def test_the_test_part_is_each_recordings_last_share(fitted, foreign_bags):

@@ -4,13 +4,21 @@ when the fitted model's σ is too narrow for them."""
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
 from sideslip_training.evaluate import Metrics
-from sideslip_training.fit_bags_card import NARROW_SHARE, Scored, model_card, narrow_interval
+from sideslip_training.fit_bags_card import (
+    GENTLE_MPS2,
+    NARROW_SHARE,
+    Scored,
+    gentle_recordings,
+    model_card,
+    narrow_interval,
+)
 
 FITTED, SHIPPED = "LSTM (my_car)", "LSTM (fleet_ukf_measurable)"
 
@@ -68,3 +76,11 @@ def test_the_card_says_where_the_cars_sigma_holds_and_what_it_widens_to_beyond()
     assert "(|a_y| ≤ 3.90 m/s², |β̇| ≤ 0.140 rad/s)" in card
     assert "σ uses scale 2.47 (2 × the shipped model's)" in card
     assert "|a_y| ≤" not in _card(None)
+    # 3.9 m/s² is gentle driving: the card says what that means for the fitted model.
+    assert "**The recordings stay under 3.9 m/s² of lateral acceleration.**" in card
+    varied = Uncertainty((1e-8, 2.7e-5, 1.2e-7, 4.8e-4), 0.8, fit_range=replace(fit, **{
+        "lateral_acceleration_mps2": GENTLE_MPS2}))  # fmt: skip
+    assert gentle_recordings(varied.to_dict()) is None and gentle_recordings(unc) == 3.9
+    card = model_card(args, "recipe", 0.3, None, _scored(0.96), None, train, 12.0,
+                      varied.to_dict())  # fmt: skip
+    assert "The recordings stay under" not in card

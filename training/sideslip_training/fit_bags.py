@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from .cli_errors import CliError
-from .fit_bags_card import Scored, model_card, narrow_interval
+from .fit_bags_card import Scored, gentle_recordings, model_card, narrow_interval
 
 IDENTIFIED_UKF: Final = "UKF (identified axles)"
 DESCRIBED_UKF: Final = "UKF (described axles)"
@@ -362,9 +362,17 @@ def run(
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
     from sideslip_msgs_py.artifact import read_artifact
 
+    uncertainty = read_artifact(args.out)[1].uncertainty
+    gentle = gentle_recordings(uncertainty)
+    if gentle is not None:
+        print(
+            f"sideslip-fit: warning: the recordings stay under {gentle:.1f} m/s² of lateral "
+            "acceleration; beyond, the fitted model may err more than the shipped one (the "
+            "card says more)",
+            file=sys.stderr,
+        )
     card = model_card(args, recipe.summary, fraction, found, test_part, new_drives,
-                      train_metrics, time.perf_counter() - started,
-                      read_artifact(args.out)[1].uncertainty)  # fmt: skip
+                      train_metrics, time.perf_counter() - started, uncertainty)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0
