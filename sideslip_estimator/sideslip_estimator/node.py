@@ -177,7 +177,7 @@ class EstimatorNode(rclpy.node.Node):
                 self.params.velocity_variance_m2ps2,
             )
         )
-        self.tracker.published(time.perf_counter() - start, est.variance_rad2)
+        self.tracker.published(time.perf_counter() - start, est.variance_rad2, est.beyond_fit_range)
 
     def _log_rejection(self, reason: str, detail: str) -> None:
         if self.tracker.rejection_due(reason, time.monotonic()):

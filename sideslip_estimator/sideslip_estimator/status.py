@@ -82,6 +82,9 @@ class Observation:
     """IMU messages found stamped ahead of their time line, since start."""
     sigmas_rad: Sequence[float] = ()
     """The published standard deviation of each estimate since the previous status."""
+    widened: int = 0
+    """Of those, the estimates whose window reached beyond the driving a fine-tuned
+    model was fitted on (σ widened)."""
 
 
 @dataclass(frozen=True)
@@ -91,14 +94,16 @@ class Status:
     values: dict[str, str]
 
 
-def _sigma_values(sigmas_rad: Sequence[float]) -> dict[str, str]:
-    """p50 / p95 of the published σ of β̂ [deg] since the previous status."""
+def _sigma_values(sigmas_rad: Sequence[float], widened: int) -> dict[str, str]:
+    """p50 / p95 of the published σ of β̂ [deg] since the previous status, and the share
+    of those estimates whose σ was widened beyond the model's fitted driving."""
     sig = np.degrees(np.asarray(sigmas_rad, dtype=float))
     if not sig.size:
-        return {"beta_sigma_deg_p50": "n/a", "beta_sigma_deg_p95": "n/a"}
+        return {k: "n/a" for k in ("beta_sigma_deg_p50", "beta_sigma_deg_p95", "sigma_widened")}
     return {
         "beta_sigma_deg_p50": f"{np.percentile(sig, 50):.4f}",
         "beta_sigma_deg_p95": f"{np.percentile(sig, 95):.4f}",
+        "sigma_widened": f"{widened / sig.size:.3f}",
     }
 
 
@@ -168,7 +173,7 @@ def assess(
         },
         "latency_ms_p50": f"{np.percentile(lat, 50):.3f}" if lat.size else "n/a",
         "latency_ms_p99": f"{np.percentile(lat, 99):.3f}" if lat.size else "n/a",
-        **_sigma_values(obs.sigmas_rad),
+        **_sigma_values(obs.sigmas_rad, obs.widened),
         "estimates": str(stats.estimates),
         "accepted_samples": str(stats.accepted),
         "rejected_samples": str(sum(stats.rejected.values())),
@@ -238,6 +243,7 @@ class StatusTracker:
         self._seen = Counts.of(stats)
         self._latencies_s: list[float] = []
         self._sigmas_rad: list[float] = []
+        self._widened = 0
         self._last_imu: tuple[int, float] | None = None  # (stamp ns, steady s)
         self._logged: dict[str, float] = {}  # rejection reason -> steady s of its last log
         self._wrong_types_logged: set[str] = set()
@@ -248,10 +254,12 @@ class StatusTracker:
     def imu_received(self, stamp_ns: int, now_s: float) -> None:
         self._last_imu = (stamp_ns, now_s)
 
-    def published(self, latency_s: float, variance_rad2: float) -> None:
-        """An estimate went out ``latency_s`` after its message arrived, with this variance of β̂."""
+    def published(self, latency_s: float, variance_rad2: float, widened: bool = False) -> None:
+        """An estimate went out ``latency_s`` after its message arrived, with this variance
+        of β̂ (``widened``: beyond the driving the model was fitted on)."""
         self._latencies_s.append(latency_s)
         self._sigmas_rad.append(math.sqrt(variance_rad2))
+        self._widened += widened
 
     def frame_mismatch(self, topic: str, frame_id: str) -> str | None:
         """Note the frame of ``topic``'s latest message: the status warns while it is
@@ -326,6 +334,7 @@ class StatusTracker:
             held=core.held,
             future_stamps=core.stats.future_stamps,
             sigmas_rad=self._sigmas_rad,
+            widened=self._widened,
         )
-        self._latencies_s, self._sigmas_rad = [], []
+        self._latencies_s, self._sigmas_rad, self._widened = [], [], 0
         return obs

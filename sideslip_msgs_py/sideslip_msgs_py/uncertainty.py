@@ -237,18 +237,20 @@ class Uncertainty:
 
     def variance_of_window(
         self, x_v_mps: npt.ArrayLike, y_a_mps2: npt.ArrayLike, yaw_rate_radps: npt.ArrayLike
-    ) -> float:
-        """σ² [rad²] of the newest sample of an input window (samples in time order): as
-        :meth:`variance_of`, widened while the window reaches beyond :attr:`fit_range`."""
+    ) -> tuple[float, bool]:
+        """σ² [rad²] of the newest sample of an input window (samples in time order), as
+        :meth:`variance_of`, widened while the window reaches beyond :attr:`fit_range`;
+        and whether it reaches beyond (False without a range)."""
         v, a_y, r = (np.asarray(a, dtype=np.float64) for a in (x_v_mps, y_a_mps2, yaw_rate_radps))
         var = self.variance_of(float(v[-1]), float(a_y[-1]), float(r[-1]))
         fit = self.fit_range
-        if fit is None or fit.outside_scale <= self.scale:
-            return var
+        if fit is None:
+            return var, False
         n = fit.window_steps
-        if fit.beyond(v[-n:], a_y[-n:], r[-n:]).any():
-            return var * (fit.outside_scale / self.scale) ** 2
-        return var
+        beyond = bool(fit.beyond(v[-n:], a_y[-n:], r[-n:]).any())
+        if beyond and fit.outside_scale > self.scale:
+            var *= (fit.outside_scale / self.scale) ** 2
+        return var, beyond
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {

@@ -186,10 +186,12 @@ def test_sigma_widens_while_the_window_reaches_beyond_the_fitted_recordings(
     own = unc.variance_of(*(float(rows[-1, i]) for i in (0, 3, 4)))
     est = PsoLstmBackend({"model_file": str(path)}, WINDOW).update(rows, stamps)
     assert est is not None and est.variance_rad2 == pytest.approx(own, rel=1e-12)
+    assert not est.beyond_fit_range
     rows = rows.copy()
     rows[0, 3] = 7.0  # the oldest sample of the window at 7 m/s²: beyond
     est = PsoLstmBackend({"model_file": str(path)}, WINDOW).update(rows, stamps)
     assert est is not None and est.variance_rad2 == pytest.approx(own * 16.0, rel=1e-12)
+    assert est.beyond_fit_range  # the node's status counts it (sigma_widened)
 
 
 def test_model_id_names_the_file_architecture_and_data(tmp_path: Path) -> None:
@@ -326,7 +328,7 @@ def test_the_shipped_default_publishes_a_sigma_that_follows_the_driving() -> Non
         rows[:, CHANNELS.index("x_v_mps")] = x_v
         rows[:, CHANNELS.index("y_a_mps2")] = y_a
         rows[:, CHANNELS.index("yaw_rate_radps")] = r
-        return backend._variance(rows)
+        return backend._variance(rows)[0]
 
     cruising = variance(30.0, 0.0, 0.0)
     assert variance(5.0, 0.0, 0.0) > 10 * cruising

@@ -212,6 +212,13 @@ def test_the_published_sigma_is_summarised_in_degrees() -> None:
     assert _assess(_obs()).values["beta_sigma_deg_p50"] == "n/a"
 
 
+def test_the_share_of_estimates_whose_sigma_widened_beyond_the_fitted_driving_is_reported():
+    sigmas = [math.radians(0.05)] * 15 + [math.radians(0.2)] * 5
+    assert _assess(_obs(sigmas_rad=sigmas, widened=5)).values["sigma_widened"] == "0.250"
+    assert _assess(_obs(sigmas_rad=sigmas)).values["sigma_widened"] == "0.000"
+    assert _assess(_obs()).values["sigma_widened"] == "n/a"
+
+
 # --- the counters' difference ------------------------------------------------------------------
 
 counts = st.builds(Counts, **{f.name: st.integers(0, 10**9) for f in fields(Counts)})

@@ -73,12 +73,12 @@ RANGED = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.05, 1.3))
 
 @given(v=st.floats(0.0, 80.0), a_y=st.floats(-15.0, 15.0), r=st.floats(-1.5, 1.5))
 def test_beyond_the_fit_range_sigma_takes_the_larger_scale(v: float, a_y: float, r: float) -> None:
-    one = RANGED.variance_of_window([v], [a_y], [r])
+    one, beyond = RANGED.variance_of_window([v], [a_y], [r])
     assert RANGED.variance([v], [a_y], [r])[0] == pytest.approx(one, rel=1e-12)
-    assert RANGED.variance_of_window([v], [-a_y], [-r]) == pytest.approx(one, rel=1e-12)
+    assert RANGED.variance_of_window([v], [-a_y], [-r])[0] == pytest.approx(one, rel=1e-12)
     plain = Uncertainty(UNC.coefficients, 0.8).variance_of(v, a_y, r)
     assert RANGED.variance_of(v, a_y, r) == pytest.approx(plain, rel=1e-12)
-    beyond = bool(RANGED.fit_range.beyond([v], [a_y], [r])[0])  # type: ignore[union-attr]
+    assert beyond == bool(RANGED.fit_range.beyond([v], [a_y], [r])[0])  # type: ignore[union-attr]
     assert one == pytest.approx(plain * (1.3 / 0.8) ** 2 if beyond else plain, rel=1e-12)
 
 
@@ -95,14 +95,17 @@ def test_sigma_stays_wide_while_the_window_holds_a_sample_beyond_the_range() -> 
     assert wide_runs.tolist() == [False] * 3 + [True] * 3 + [False] * 6
     # The estimator's path gives the newest sample of each window the same σ.
     online = [unc.variance_of_window(v[max(0, k - 4) : k + 1], a_y[max(0, k - 4) : k + 1],
-                                     r[max(0, k - 4) : k + 1]) for k in range(12)]  # fmt: skip
+                                     r[max(0, k - 4) : k + 1])[0] for k in range(12)]  # fmt: skip
     assert online == pytest.approx(unc.variance(v, a_y, r).tolist(), rel=1e-12)
 
 
 def test_an_outside_scale_below_the_cars_own_never_narrows_sigma() -> None:
     narrower = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.05, 0.5))
     plain = Uncertainty(UNC.coefficients, 0.8)
-    assert narrower.variance_of_window([20.0], [9.0], [0.4]) == plain.variance_of(20.0, 9.0, 0.4)
+    assert narrower.variance_of_window([20.0], [9.0], [0.4]) == (
+        plain.variance_of(20.0, 9.0, 0.4),
+        True,
+    )
     assert narrower.variance([20.0], [9.0], [0.4])[0] == pytest.approx(
         plain.variance_of(20.0, 9.0, 0.4), rel=1e-12
     )

@@ -24,6 +24,9 @@ class Estimate:
 
     beta_rad: float
     variance_rad2: float
+    beyond_fit_range: bool = False
+    """The input window reached beyond the driving a fine-tuned model was fitted on, so
+    its σ was widened (:class:`~sideslip_msgs_py.uncertainty.FitRange`)."""
 
 
 class Backend(Protocol):

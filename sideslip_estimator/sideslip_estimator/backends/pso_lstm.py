@@ -255,7 +255,7 @@ class PsoLstmBackend:
             if y is None or not math.isfinite(y):
                 return None
             if self.meta.prior == "none":
-                return Estimate(denormalize_beta(y, self.meta), self._variance(rows))
+                return Estimate(denormalize_beta(y, self.meta), *self._variance(rows))
         elif rows.shape[0] < self.window_steps or (
             self._observer is not None and len(self._observed) < self.window_steps
         ):
@@ -273,19 +273,20 @@ class PsoLstmBackend:
             if not math.isfinite(prior):
                 return None
             if self._prior_only:
-                return Estimate(prior, self._variance(rows))
+                return Estimate(prior, *self._variance(rows))
         if self._window_net is not None:
             x = input_matrix(columns, self.meta.features, self._vehicle)
             y = self._window_net((x - self._mean) / self._std)
             if not math.isfinite(y):
                 return None
-        return Estimate(denormalize_beta(y, self.meta) + prior, self._variance(rows))
+        return Estimate(denormalize_beta(y, self.meta) + prior, *self._variance(rows))
 
-    def _variance(self, rows: npt.NDArray[np.float64]) -> float:
+    def _variance(self, rows: npt.NDArray[np.float64]) -> tuple[float, bool]:
         """The published variance [rad²]: the model's uncertainty at the newest row, or
-        the validation RMSE² for a model without one."""
+        the validation RMSE² for a model without one; and whether the window reached
+        beyond the driving the model was fitted on (its σ then widened)."""
         if self._uncertainty is None:
-            return self.variance_rad2
+            return self.variance_rad2, False
         if self._uncertainty.fit_range is not None:
             return self._uncertainty.variance_of_window(
                 rows[:, _X_V], rows[:, _Y_A], rows[:, _YAW_RATE]
@@ -293,7 +294,7 @@ class PsoLstmBackend:
         row = rows[-1]
         return self._uncertainty.variance_of(
             float(row[_X_V]), float(row[_Y_A]), float(row[_YAW_RATE])
-        )
+        ), False
 
     def _push(
         self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
