@@ -25,6 +25,7 @@ fleet scale).
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final
@@ -87,16 +88,20 @@ class FitRange:
             ("outside_scale", "> 0"),
         ):
             value = getattr(self, name)
-            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+            ok = ok and math.isfinite(value)
             if not (ok and (value > 0.0 or (value == 0.0 and least == ">= 0"))):
                 raise UncertaintyError(f"uncertainty.fit_range: {name} must be finite and "
                                        f"{least}, got {value!r}")  # fmt: skip
             object.__setattr__(self, name, float(value))
         steps = self.window_steps
-        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        # JSON writers may give 100 as 100.0: an integral number is taken.
+        integral = isinstance(steps, numbers.Real) and not isinstance(steps, bool)
+        if not (integral and math.isfinite(steps) and float(steps).is_integer() and steps >= 1):
             raise UncertaintyError(
                 f"uncertainty.fit_range: window_steps must be an integer >= 1, got {steps!r}"
             )
+        object.__setattr__(self, "window_steps", int(steps))
 
     @classmethod
     def of_samples(
@@ -127,10 +132,11 @@ class FitRange:
         self, x_v_mps: npt.ArrayLike, y_a_mps2: npt.ArrayLike, yaw_rate_radps: npt.ArrayLike
     ) -> npt.NDArray[np.bool_]:
         """Per sample: this sample lies beyond the range."""
-        v = np.maximum(np.asarray(x_v_mps, dtype=np.float64), MIN_SPEED_MPS)
-        a_y = np.asarray(y_a_mps2, dtype=np.float64)
+        v = np.maximum(np.atleast_1d(np.asarray(x_v_mps, dtype=np.float64)), MIN_SPEED_MPS)
+        a_y = np.atleast_1d(np.asarray(y_a_mps2, dtype=np.float64))
+        r = np.atleast_1d(np.asarray(yaw_rate_radps, dtype=np.float64))
         return (np.abs(a_y) > self.lateral_acceleration_mps2) | (
-            np.abs(_beta_rate(v, a_y, yaw_rate_radps)) > self.beta_rate_radps
+            np.abs(_beta_rate(v, a_y, r)) > self.beta_rate_radps
         )
 
     def window_beyond(
@@ -144,8 +150,14 @@ class FitRange:
         included) lies beyond the range. Samples are in time order; ``run`` gives each
         sample's run (contiguous ids; the window restarts with each run; default one run)."""
         out = self.beyond(x_v_mps, y_a_mps2, yaw_rate_radps)
-        ids = np.zeros(out.size, np.int64) if run is None else np.asarray(run)
+        ids = np.zeros(out.size, np.int64) if run is None else np.atleast_1d(np.asarray(run))
+        if ids.shape != out.shape:
+            raise UncertaintyError(
+                f"run must give one id per sample: {ids.size} ids for {out.size} samples"
+            )
         starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+        if np.unique(ids[starts]).size != starts.size:
+            raise UncertaintyError("run ids must be contiguous: a run's samples in one stretch")
         for a, b in zip(starts, np.r_[starts[1:], out.size], strict=True):
             count = np.concatenate([[0], np.cumsum(out[a:b])])
             k = np.arange(1, b - a + 1)
@@ -217,14 +229,19 @@ class Uncertainty:
         y_a_mps2: npt.ArrayLike,
         yaw_rate_radps: npt.ArrayLike,
         run: npt.ArrayLike | None = None,
+        beyond: npt.ArrayLike | None = None,
     ) -> npt.NDArray[np.float64]:
         """σ² [rad²] per sample. With a :attr:`fit_range` the samples must be in time
-        order, ``run`` (contiguous ids) telling runs apart (default: one run)."""
+        order, ``run`` (contiguous ids) telling runs apart (default: one run); or
+        ``beyond`` gives each sample's :meth:`FitRange.window_beyond` flag, computed on
+        whole runs, for samples taken out of them (scored samples only)."""
         t = terms(x_v_mps, y_a_mps2, yaw_rate_radps)
         scale: float | npt.NDArray[np.float64] = self.scale
         if self.fit_range is not None:
-            beyond = self.fit_range.window_beyond(x_v_mps, y_a_mps2, yaw_rate_radps, run)
-            scale = np.where(beyond, max(self.scale, self.fit_range.outside_scale), self.scale)
+            if beyond is None:
+                beyond = self.fit_range.window_beyond(x_v_mps, y_a_mps2, yaw_rate_radps, run)
+            wide = np.reshape(np.asarray(beyond, dtype=bool), np.shape(t)[:-1])
+            scale = np.where(wide, max(self.scale, self.fit_range.outside_scale), self.scale)
         return scale**2 * (t @ np.asarray(self.coefficients))
 
     def variance_of(self, x_v_mps: float, y_a_mps2: float, yaw_rate_radps: float) -> float:

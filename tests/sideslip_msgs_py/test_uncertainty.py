@@ -126,3 +126,34 @@ def test_the_fit_range_spans_the_samples_at_speed_and_survives_the_model_file() 
         FitRange.of_samples([0.5], [1.0], [0.0], outside_scale=1.0, window_steps=1)
     with pytest.raises(UncertaintyError, match="window_steps must be an integer"):
         FitRange(1.0, 1.0, 1.0, window_steps=0)
+
+
+def test_window_steps_from_json_may_be_an_integral_float_and_nothing_else() -> None:
+    assert FitRange(1.0, 1.0, 1.0, window_steps=100.0).window_steps == 100  # type: ignore[arg-type]
+    for bad in (99.5, True, float("inf")):
+        with pytest.raises(UncertaintyError, match="window_steps must be an integer"):
+            FitRange(1.0, 1.0, 1.0, window_steps=bad)  # type: ignore[arg-type]
+    with pytest.raises(UncertaintyError, match="outside_scale must be finite"):
+        FitRange(1.0, 1.0, True)  # type: ignore[arg-type]
+
+
+def test_a_scalar_sample_and_run_ids_that_do_not_fit_are_handled() -> None:
+    ranged = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.5, 1.6, window_steps=3))
+    one = ranged.variance(20.0, 9.0, 0.4)
+    assert np.shape(one) == () and one == pytest.approx(
+        ranged.variance_of_window([20.0], [9.0], [0.4])[0]
+    )
+    fit = ranged.fit_range
+    assert fit is not None
+    with pytest.raises(UncertaintyError, match="one id per sample: 2 ids for 3 samples"):
+        fit.window_beyond([20.0] * 3, [0.0] * 3, [0.0] * 3, run=[0, 0])
+    with pytest.raises(UncertaintyError, match="run ids must be contiguous"):
+        fit.window_beyond([20.0] * 3, [0.0] * 3, [0.0] * 3, run=[0, 1, 0])
+
+
+def test_given_window_flags_override_what_the_samples_alone_would_say() -> None:
+    """Scored samples lack their window's first rows: flags computed on the whole run."""
+    ranged = Uncertainty(UNC.coefficients, 0.8, fit_range=FitRange(4.0, 0.5, 1.6, window_steps=3))
+    plain = ranged.variance([20.0, 20.0], [0.0, 0.0], [0.0, 0.0])
+    flagged = ranged.variance([20.0, 20.0], [0.0, 0.0], [0.0, 0.0], beyond=[True, False])
+    assert flagged == pytest.approx(plain * np.array([4.0, 1.0]))

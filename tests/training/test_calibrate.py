@@ -124,3 +124,45 @@ def test_car_given_without_files_is_refused(sim_bag_dir: Path, tmp_path: Path, c
                  "given", "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
     assert code == 2
     assert "--car given needs --vehicle and/or --observer-params" in capsys.readouterr().err
+
+
+def test_a_fitted_models_range_survives_recalibration_and_its_flags_span_whole_runs(
+    foreign_bags, compact_rwd_description: Path, tmp_path: Path, capsys
+) -> None:
+    """Calibrating a fine-tuned model again keeps where its σ holds; the errors it is
+    scored on carry each sample's window flag from the whole run, as the node has it."""
+    from dataclasses import replace
+    from importlib import resources
+
+    from sideslip_msgs_py.artifact import write_artifact
+    from sideslip_msgs_py.topic_map import TopicMap
+    from sideslip_msgs_py.uncertainty import FitRange
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_training.dataset import load_runs
+    from sideslip_training.export import load_model
+    from sideslip_training.init_model import resolve
+
+    folder, topic_map = foreign_bags
+    ukf = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
+    tensors, meta = read_artifact(resolve("fleet_ukf_measurable"))
+    fit = FitRange(2.0, 0.05, 2.5, window_steps=meta.window_steps)  # narrow: often left
+    unc = replace(Uncertainty.from_dict(meta.uncertainty), fit_range=fit)
+    fitted = tmp_path / "fitted.safetensors"
+    write_artifact(fitted, tensors, replace(meta, uncertainty=unc.to_dict()))
+    out = tmp_path / "again.safetensors"
+    code = main(["--model", str(fitted), "--data", str(folder), "--topic-map", str(topic_map),
+                 "--vehicle", str(compact_rwd_description), "--observer-params", str(ukf),
+                 "--car", "given", "--scale-only", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert Uncertainty.from_dict(read_artifact(out)[1].uncertainty).fit_range == fit
+
+    net, loaded = load_model(fitted)
+    runs, _ = load_runs([folder], step_s=loaded.dt_s, topic_map=TopicMap.load(topic_map))
+    vehicle = VehicleDescription.load(compact_rwd_description)
+    car = {"vehicle": vehicle, "observer_params_file": str(ukf), "car": "given"}
+    errors = Errors.of_runs(runs[:2], net, loaded, **car)
+    assert errors.beyond is not None and 0.0 < errors.beyond.mean() < 1.0
+    s = runs[0].samples
+    whole = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[loaded.window_steps - 1 :]
+    first = errors.beyond[errors.run == 0]
+    assert first.size == whole.size and (first == whole).all()

@@ -43,9 +43,7 @@ WHERE = ("test part", "new drives")
 
 def inside(errors: Errors, unc: Uncertainty) -> tuple[float, list[float]]:
     """Pooled share inside ±1.96 σ, and per run."""
-    ok = np.abs(errors.err) <= 1.959963984540054 * np.sqrt(
-        unc.variance(errors.v, errors.ay, errors.r, errors.run)
-    )
+    ok = np.abs(errors.err) <= 1.959963984540054 * np.sqrt(errors.variance(unc))
     return float(ok.mean()), [float(ok[errors.run == i].mean()) for i in np.unique(errors.run)]
 
 

@@ -48,6 +48,14 @@ class Errors:
     ay: FloatArray
     r: FloatArray
     run: npt.NDArray[np.int64]
+    beyond: npt.NDArray[np.bool_] | None = None
+    """Per sample, for a model whose σ has a fit range: its window reached beyond it
+    (computed on the whole run, as the node does; the scored samples lack the first
+    window's)."""
+
+    def variance(self, unc: Uncertainty) -> FloatArray:
+        """σ² [rad²] of ``unc`` at these samples (the model's own window flags)."""
+        return unc.variance(self.v, self.ay, self.r, self.run, beyond=self.beyond)
 
     @classmethod
     def of_runs(cls, runs: Sequence[Run], model, meta, **car: Any) -> Errors:  # type: ignore[no-untyped-def]
@@ -55,7 +63,11 @@ class Errors:
         ``car``: :func:`~.evaluate.predict_run`'s ``vehicle``, ``observer_params_file``
         and ``car``, for bags that record no car or to give every run the same files."""
         w = meta.window_steps
-        parts: dict[str, list[FloatArray]] = {k: [] for k in ("err", "v", "ay", "r", "run")}
+        fit = (
+            None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
+        )
+        keys = ("err", "v", "ay", "r", "run", "beyond")
+        parts: dict[str, list[npt.NDArray[Any]]] = {k: [] for k in keys}
         for i, run in enumerate(runs):
             est = predict_run(model, meta, run, **car)
             s = run.samples
@@ -66,7 +78,14 @@ class Errors:
             parts["ay"].append(s.y_a_mps2[w - 1 :][ok])
             parts["r"].append(s.yaw_rate_radps[w - 1 :][ok])
             parts["run"].append(np.full(int(ok.sum()), i))
-        return cls.from_arrays(*(np.concatenate(parts[k]) for k in ("err", "v", "ay", "r", "run")))
+            if fit is not None:
+                beyond = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)
+                parts["beyond"].append(beyond[w - 1 :][ok])
+        arrays = [np.concatenate(parts[k]) for k in keys[:-1]]
+        errors = cls.from_arrays(*arrays)
+        if fit is None:
+            return errors
+        return replace(errors, beyond=np.concatenate(parts["beyond"]))
 
     @classmethod
     def from_arrays(
@@ -125,9 +144,7 @@ def conformal_scale(errors: Errors, coefficients: Sequence[float], coverage: flo
 
 def coverage_of(errors: Errors, unc: Uncertainty) -> tuple[float, FloatArray]:
     """Share of samples within ±z·σ, pooled and per run."""
-    inside = np.abs(errors.err) <= z_of(unc.coverage) * np.sqrt(
-        unc.variance(errors.v, errors.ay, errors.r, errors.run)
-    )
+    inside = np.abs(errors.err) <= z_of(unc.coverage) * np.sqrt(errors.variance(unc))
     per_run = np.array([inside[errors.run == i].mean() for i in np.unique(errors.run)])
     return float(inside.mean()), per_run
 
@@ -166,7 +183,11 @@ def calibrate(
         if len(fit_errors) < 100 or len(scale_errors) < 100:
             raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
         coefficients = fit_coefficients(fit_errors)
-    unc = Uncertainty(coefficients, conformal_scale(scale_errors, coefficients, coverage), coverage)
+    # The range of the network's fine-tuning data stays what it was: keep it (a fitted
+    # model calibrated again must not lose the widening beyond it).
+    kept = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
+    scale = conformal_scale(scale_errors, coefficients, coverage)
+    unc = Uncertainty(coefficients, scale, coverage, fit_range=kept)
     pooled, per_run = coverage_of(scale_errors, unc)
     const = math.sqrt(float(np.mean(fit_errors.err**2)))
     const_inside = np.abs(scale_errors.err) <= z_of(coverage) * const

@@ -366,7 +366,8 @@ def run(
     gentle = gentle_recordings(uncertainty)
     if gentle is not None:
         print(
-            f"sideslip-fit: warning: the recordings stay under {gentle:.1f} m/s² of lateral "
+            f"sideslip-fit: warning: the recordings stay under {math.ceil(gentle * 10) / 10:.1f} "
+            "m/s² of lateral "
             "acceleration; beyond, the fitted model may err more than the shipped one (the "
             "card says more)",
             file=sys.stderr,

@@ -184,10 +184,11 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
     gentle = gentle_recordings(stored)
     if gentle is not None:
         text += (
-            f"\n\n**The recordings stay under {gentle:.1f} m/s² of lateral acceleration.** "
+            f"\n\n**The recordings stay under {math.ceil(gentle * 10) / 10:.1f} m/s² of "
+            "lateral acceleration.** "
             "Beyond that the fine-tuned network extrapolates: on validation cars fitted on "
             "driving under 4 m/s² it erred more than the shipped model on their harder "
-            "drives in 4 of 8 (mean MAE 0.072° against 0.055°; docs/evaluation/fit-bags). "
+            "drives in 4 of 8 (mean MAE 0.071° against 0.055°; docs/evaluation/fit-bags). "
             "Record driving nearer the limit (a skid pad, a closed course) and fit again, "
             "or keep the shipped model."
         )

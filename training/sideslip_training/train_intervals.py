@@ -114,6 +114,8 @@ def calibrate_selection(
         unc, figures = calibrate(
             plan.data.val_runs, model, meta, seed=seed, scale_only=mode == "scale", car=car
         )
+        if mode == "scale":
+            unc = replace(unc, fit_range=_fit_range(plan))
     except (DatasetError, FilterError, FeatureError, ValueError) as err:
         log(f"intervals: none ({err})")
         if policy != "auto":
@@ -123,10 +125,8 @@ def calibrate_selection(
                 file=sys.stderr,
             )
         return None, None
-    if mode == "scale":
-        unc = replace(unc, fit_range=_fit_range(plan))
-        fit = unc.fit_range
-        assert fit is not None
+    fit = unc.fit_range
+    if mode == "scale" and fit is not None:
         log(
             f"intervals: the recordings span |a_y| ≤ {fit.lateral_acceleration_mps2:.2f} m/s², "
             f"|β̇| ≤ {fit.beta_rate_radps:.3f} rad/s; while the window reaches beyond, "
