@@ -14,7 +14,10 @@ Share of samples inside ±1.96 σ of the fitted model's errors, per car and per 
 the card's test part (each own recording's last 30 %) and on the car's four
 validation-fleet drives (new drives), for the car's scale alone and with the range at
 each factor. Models fitted before the range was recorded get it here from the same
-stretches. Writes ``OUT`` (JSON), prints markdown tables.
+stretches. Writes ``OUT`` (JSON), prints markdown tables; each car's ``fit_range`` in
+``OUT`` is the model's own (``outside_scale`` 2 × the start's) or, for those older
+models, the one made here (``outside_scale`` 1 × the start's): either way the factors
+multiply the start model's scale.
 
     python training/scripts/interval_fit_range.py --cars data/fit-bags-check/fleet2_car00{0..3} \
         data/fit-bags-check-b/fleet2_car00{4..7} --drives data/fleet-val --out FILE.json
