@@ -120,7 +120,16 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--vehicle", required=True, type=Path, help="the car's description (YAML)")
     p.add_argument("--out", required=True, type=Path, metavar="FILE.safetensors")
-    p.add_argument("--profile", choices=list(FIT_PROFILES), default="quick")
+    p.add_argument(
+        "--profile",
+        choices=list(FIT_PROFILES),
+        default="quick",
+        help="quick: 12 cars around the description, at most 30 epochs (with --bags: "
+        "every 10th window, no mirrored runs; 3-5 min for 7.5 min of recordings on 2 "
+        "cores); thorough: 40 cars and the paper's training settings (with --bags: every "
+        "window, runs mirrored; 33 min for the same recordings, 21 %% less error on "
+        "their test part on the one car measured, docs/evaluation/fit-bags)",
+    )
     p.add_argument(
         "--features",
         choices=["paper", "measurable"],
