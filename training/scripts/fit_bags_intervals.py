@@ -20,7 +20,6 @@ without the fit). Writes ``OUT`` (JSON) and prints a markdown table.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -29,12 +28,14 @@ from pathlib import Path
 import numpy as np
 
 from sideslip_msgs_py.uncertainty import Uncertainty
-from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_training.calibrate import Errors
 from sideslip_training.dataset import load_runs
 from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 from sideslip_training.splits import split_in_time
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fit_bags_folder import fitted_car, study_parser
 
 START = "fleet_ukf_measurable"
 TEST_FRACTION = 0.3
@@ -48,10 +49,7 @@ def inside(errors: Errors, unc: Uncertainty) -> tuple[float, list[float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cars", type=Path, nargs="+", required=True, help="fit_bags_check folders")
-    p.add_argument("--drives", type=Path, default=Path("data/fleet-val"))
-    p.add_argument("--out", type=Path, required=True)
+    p = study_parser(__doc__)
     args = p.parse_args(argv)
     start_net, start_meta = load_model(resolve(START))
     start_unc = Uncertainty.from_dict(start_meta.uncertainty)
@@ -61,11 +59,7 @@ def main(argv: list[str] | None = None) -> int:
         net, meta = load_model(fitted)
         train = json.loads((work / "fitted.fit" / "train-run" / "metrics.json").read_text())
         constant = Uncertainty((1.0, 0.0, 0.0, 0.0), math.radians(train["val_rmse_deg"]))
-        car = {
-            "vehicle": VehicleDescription.load(work / "description.yaml"),
-            "observer_params_file": str(work / "fitted.ukf.yaml"),
-            "car": "given",
-        }
+        car = fitted_car(work)
         own, _ = load_runs([work / "own"], step_s=meta.dt_s)
         _, tail = split_in_time(own, TEST_FRACTION, "test")
         tail = [r for r in tail if len(r.samples) >= meta.window_steps]

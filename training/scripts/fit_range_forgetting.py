@@ -15,7 +15,6 @@ markdown table.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -23,12 +22,14 @@ from pathlib import Path
 import numpy as np
 
 from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
-from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import predict_run
 from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 from sideslip_training.splits import split_in_time
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fit_bags_folder import fitted_car, study_parser
 
 START = "fleet_ukf_measurable"
 TEST_FRACTION = 0.3
@@ -48,21 +49,14 @@ def fit_range_of(work: Path, meta) -> FitRange:  # type: ignore[no-untyped-def]
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cars", type=Path, nargs="+", required=True, help="fit_bags_check folders")
-    p.add_argument("--drives", type=Path, default=Path("data/fleet-val"))
-    p.add_argument("--out", type=Path, required=True)
+    p = study_parser(__doc__)
     args = p.parse_args(argv)
     start_net, start_meta = load_model(resolve(START))
     summary: dict[str, dict[str, float]] = {}
     for work in args.cars:
         net, meta = load_model(work / "fitted.safetensors")
         fit_range = fit_range_of(work, meta)
-        car = {
-            "vehicle": VehicleDescription.load(work / "description.yaml"),
-            "observer_params_file": str(work / "fitted.ukf.yaml"),
-            "car": "given",
-        }
+        car = fitted_car(work)
         drives, _ = load_runs(sorted(args.drives.glob(f"{work.name}_*")), step_s=meta.dt_s)
         fitted, shipped, beyond = [], [], []
         w = meta.window_steps

@@ -27,7 +27,6 @@ The held-out cars (``--drives data/held-out``) are grouped by μ cell instead of
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import sys
@@ -38,12 +37,14 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.uncertainty import Z_95, FitRange, Uncertainty
-from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_training.dataset import Run, load_runs
 from sideslip_training.evaluate import predict_run
 from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 from sideslip_training.splits import split_in_time
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fit_bags_folder import fitted_car, study_parser
 
 START = "fleet_ukf_measurable"
 TEST_FRACTION = 0.3
@@ -97,11 +98,8 @@ def cell(name: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cars", type=Path, nargs="+", required=True, help="fit_bags_check folders")
-    p.add_argument("--drives", type=Path, default=Path("data/fleet-val"))
+    p = study_parser(__doc__)
     p.add_argument("--factors", type=float, nargs="+", default=[1.0, 1.5, 2.0, 3.0])
-    p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
     _, start_meta = load_model(resolve(START))
     start_scale = Uncertainty.from_dict(start_meta.uncertainty).scale
@@ -109,11 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     for work in args.cars:
         net, meta = load_model(work / "fitted.safetensors")
         carried = Uncertainty.from_dict(meta.uncertainty)
-        car = {
-            "vehicle": VehicleDescription.load(work / "description.yaml"),
-            "observer_params_file": str(work / "fitted.ukf.yaml"),
-            "car": "given",
-        }
+        car = fitted_car(work)
         own, _ = load_runs([work / "own"], step_s=meta.dt_s)
         head, tail = split_in_time(own, TEST_FRACTION, "test")
         fit_range = carried.fit_range or FitRange.of_samples(
