@@ -139,6 +139,22 @@ class FitRange:
             np.abs(_beta_rate(v, a_y, r)) > self.beta_rate_radps
         )
 
+    def reaches_beyond(
+        self,
+        x_v_mps: npt.NDArray[np.float64],
+        y_a_mps2: npt.NDArray[np.float64],
+        yaw_rate_radps: npt.NDArray[np.float64],
+    ) -> bool:
+        """Whether any of the last ``window_steps`` samples (float arrays in time order)
+        lies beyond the range: the estimator's per-sample check, without per-sample
+        flags (half the time of ``beyond(...).any()`` at 400 Hz)."""
+        n = self.window_steps
+        a_y = y_a_mps2[-n:]
+        if np.abs(a_y).max() > self.lateral_acceleration_mps2:
+            return True
+        v = np.maximum(x_v_mps[-n:], MIN_SPEED_MPS)
+        return bool(np.abs(a_y / v - yaw_rate_radps[-n:]).max() > self.beta_rate_radps)
+
     def window_beyond(
         self,
         x_v_mps: npt.ArrayLike,
@@ -258,13 +274,14 @@ class Uncertainty:
         """σ² [rad²] of the newest sample of an input window (samples in time order), as
         :meth:`variance_of`, widened while the window reaches beyond :attr:`fit_range`;
         and whether it reaches beyond (False without a range)."""
-        v, a_y, r = (np.asarray(a, dtype=np.float64) for a in (x_v_mps, y_a_mps2, yaw_rate_radps))
+        v = np.asarray(x_v_mps, dtype=np.float64)
+        a_y = np.asarray(y_a_mps2, dtype=np.float64)
+        r = np.asarray(yaw_rate_radps, dtype=np.float64)
         var = self.variance_of(float(v[-1]), float(a_y[-1]), float(r[-1]))
         fit = self.fit_range
         if fit is None:
             return var, False
-        n = fit.window_steps
-        beyond = bool(fit.beyond(v[-n:], a_y[-n:], r[-n:]).any())
+        beyond = fit.reaches_beyond(v, a_y, r)
         if beyond and fit.outside_scale > self.scale:
             var *= (fit.outside_scale / self.scale) ** 2
         return var, beyond

@@ -157,3 +157,17 @@ def test_given_window_flags_override_what_the_samples_alone_would_say() -> None:
     plain = ranged.variance([20.0, 20.0], [0.0, 0.0], [0.0, 0.0])
     flagged = ranged.variance([20.0, 20.0], [0.0, 0.0], [0.0, 0.0], beyond=[True, False])
     assert flagged == pytest.approx(plain * np.array([4.0, 1.0]))
+
+
+@given(
+    a_y=st.lists(st.floats(-9.0, 9.0), min_size=1, max_size=8),
+    v=st.floats(0.0, 40.0),
+    r=st.floats(-0.6, 0.6),
+)
+def test_the_estimators_window_check_agrees_with_the_per_sample_flags(
+    a_y: list[float], v: float, r: float
+) -> None:
+    fit = FitRange(4.0, 0.1, 2.0, window_steps=5)
+    a = np.asarray(a_y)
+    vs, rs = np.full(a.size, v), np.full(a.size, r)
+    assert fit.reaches_beyond(vs, a, rs) == bool(fit.beyond(vs[-5:], a[-5:], rs[-5:]).any())
