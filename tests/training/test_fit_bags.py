@@ -131,18 +131,27 @@ def test_separate_recordings_are_scored_whole_beside_the_test_part(
 def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     foreign_bags, compact_rwd_description, tmp_path, capsys
 ):
+    """With two rehearsal runs: simulated cars like the described one train beside the
+    recordings (read in our own topics, not through the map), and a second fit reuses
+    them."""
     folder, topic_map = foreign_bags
     out = tmp_path / "paper.safetensors"
-    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder),
-                 "--topic-map", str(topic_map), "--out", str(out), "--max-epochs", "1",
-                 "--test-fraction", "0.25", "--learning-rate", "0.0005", "--quiet"])  # fmt: skip
-    assert code == 0, capsys.readouterr().err
+    args = ["--vehicle", str(compact_rwd_description), "--bags", str(folder),
+            "--topic-map", str(topic_map), "--out", str(out), "--max-epochs", "1",
+            "--test-fraction", "0.25", "--learning-rate", "0.0005", "--rehearse", "2"]  # fmt: skip
+    assert main([*args, "--quiet"]) == 0, capsys.readouterr().err
     config = json.loads((tmp_path / "paper.fit" / "train-run" / "config.json").read_text())
     assert config["args"]["learning_rate"] == 0.0005 and config["args"]["test_fraction"] == 0.25
+    assert len(config["rehearsal_bags"]) == 2
+    assert all("_rehearsal" in b for b in config["rehearsal_bags"])
+    assert not any("_rehearsal" in b for b in config["val_bags"] + config["test_bags"])
     assert not out.with_suffix(".ukf.yaml").exists()
     card = out.with_suffix(".md").read_text()
     assert "(fleet_lstm_paper)" in card and "Kinematic (20-step mean)" in card
+    assert "beside 2 simulated runs of cars like it" in card
     assert "UKF" not in card
+    assert main([*args, "--force"]) == 0
+    assert "rehearsal: 2 runs already simulated (reused)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -150,6 +159,7 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     [
         (["--test-fraction", "1.5"], "--test-fraction must be in (0, 1)"),
         (["--cars", "4"], "--cars is for simulated fits"),
+        (["--rehearse", "-1"], "--rehearse must be >= 0 runs"),
         (["--test-bags", "{folder}"], "must be other drives than the fit's"),
         (["--test-bags", "{folder}/drive03"], "must be other drives than the fit's"),
         (["--test-bags", "{link}"], "must be other drives than the fit's"),
@@ -187,11 +197,14 @@ def _short_recording(dest):
     return write_foreign_bag(dest, make_truth(20))
 
 
-@pytest.mark.parametrize("option", ["--topic-map", "--test-bags"])
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--topic-map", "map.yaml"), ("--test-bags", "map.yaml"), ("--rehearse", "8")],
+)
 def test_recording_options_without_bags_are_refused(
-    compact_rwd_description, tmp_path, capsys, option
+    compact_rwd_description, tmp_path, capsys, option, value
 ):
-    code = main(["--vehicle", str(compact_rwd_description), option, "map.yaml",
+    code = main(["--vehicle", str(compact_rwd_description), option, value,
                  "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
     assert code == 2
     assert f"{option} needs --bags" in capsys.readouterr().err

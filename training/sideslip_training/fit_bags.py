@@ -42,6 +42,12 @@ IDENTIFIED_UKF: Final = "UKF (identified axles)"
 DESCRIBED_UKF: Final = "UKF (described axles)"
 DEFAULT_TEST_FRACTION: Final = 0.3
 """The share of every recording kept for the test (the issue's 70/30 split in time)."""
+DEFAULT_REHEARSAL_RUNS: Final = 0
+"""Simulated runs of cars like the described one trained beside the recordings
+(``--rehearse``)."""
+REHEARSAL_SEED: Final = 50_000
+"""Added to ``--seed`` for the rehearsal's cars and runs: other cars than a description
+fit's (``sideslip-fit`` without ``--bags``) with the same seed."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,17 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         f"(default {DEFAULT_TEST_FRACTION:g})",
     )
     p.add_argument(
+        "--rehearse",
+        type=int,
+        metavar="RUNS",
+        default=None,
+        help="with --bags: simulated runs (fleet manoeuvres up to the limit, μ 0.3-1.0) of "
+        "cars like the description's, trained beside the recordings but never validated, "
+        "tested or calibrated on, so that the fit keeps what the shipped model knew "
+        f"beyond the recordings (default {DEFAULT_REHEARSAL_RUNS}; 0: none; about 9 s "
+        "of driving each; docs/evaluation/fit-bags, 'Rehearsal')",
+    )
+    p.add_argument(
         "--test-bags",
         nargs="+",
         metavar="BAG",
@@ -107,13 +124,15 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
 def check_bag_arguments(args: argparse.Namespace) -> float:
     """Refuse options that do not go together; the test fraction to use."""
     if args.bags is None:
-        for name in ("topic_map", "test_fraction", "test_bags"):
+        for name in ("topic_map", "test_fraction", "test_bags", "rehearse"):
             if getattr(args, name) is not None:
                 raise CliError(f"--{name.replace('_', '-')} needs --bags")
         return 0.0
     for name in ("cars", "test_runs"):
         if getattr(args, name) is not None:
             raise CliError(f"--{name.replace('_', '-')} is for simulated fits, not with --bags")
+    if args.rehearse is not None and args.rehearse < 0:
+        raise CliError(f"--rehearse must be >= 0 runs, got {args.rehearse}")
     fraction = DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction
     if not (0.0 < fraction < 1.0 and math.isfinite(fraction)):
         raise CliError(f"--test-fraction must be in (0, 1), got {args.test_fraction}")
@@ -169,6 +188,50 @@ def identify(head: Sequence[Any], vehicle: Path, ukf_file: Path, log: Callable) 
         f"-> {ukf_file}"
     )
     return found
+
+
+def rehearsal_runs(args: argparse.Namespace) -> int:
+    """How many rehearsal runs the fit trains beside the recordings."""
+    return DEFAULT_REHEARSAL_RUNS if args.rehearse is None else int(args.rehearse)
+
+
+def simulate_rehearsal(
+    args: argparse.Namespace, desc: Any, work: Path, log: Callable, started: float
+) -> Path | None:
+    """Simulate ``--rehearse`` runs of cars drawn around the description (the fleet
+    sampler centred on it, as the description path does; held-out cars never) into
+    ``work/rehearsal``; reused when a folder made with the same car, count and seed is
+    there. None when no rehearsal is asked for."""
+    from sideslip_sim.fleet import sample_fleet
+    from sideslip_sim.generate import generate, prepare_output
+    from sideslip_sim.held_out import held_out_digests
+    from sideslip_sim.presets import FLEET_RUNS_PER_CAR, fleet_runs
+
+    count = rehearsal_runs(args)
+    if count == 0:
+        return None
+    out = work / "rehearsal"
+    stamp = work / "rehearsal.json"
+    key = {"car": desc.digest(), "runs": count, "seed": args.seed}
+    if (out / "index.json").exists() and stamp.exists():
+        if json.loads(stamp.read_text()) == key:
+            stage(log, started, f"rehearsal: {count} runs already simulated (reused)")
+            return out
+    seed = args.seed + REHEARSAL_SEED
+    cars = sample_fleet(
+        -(-count // FLEET_RUNS_PER_CAR),
+        seed,
+        prefix=f"{desc.name}_rehearsal",
+        ranges=desc.ranges(),
+        exclude_digests=held_out_digests(),
+    ).vehicles
+    stage(log, started, f"rehearsal: simulating {count} runs of {len(cars)} cars like the car")
+    stamp.unlink(missing_ok=True)
+    prepare_output(out, force=True)
+    generate(fleet_runs(cars, count, seed), out, seed=seed, preset_name="fit-rehearsal",
+             jobs=args.jobs, progress=not args.quiet)  # fmt: skip
+    stamp.write_text(json.dumps(key) + "\n")
+    return out
 
 
 def scored_traces(
@@ -308,7 +371,9 @@ def run(
             described.write_text(desc.ukf_params_yaml())
             stage(log, started, "identifying the UKF's axles")
             found = identify(head, args.vehicle, ukf_file, log)
+        rehearsal = simulate_rehearsal(args, desc, work, log, started)
         train = ["--data", *args.bags, "--split", "time", "--test-fraction", f"{fraction!r}"]
+        train += ["--rehearse", str(rehearsal)] if rehearsal is not None else []
         train += ["--init", shipped, "--out", str(args.out), "--force"]
         train += ["--run-dir", str(work / "train-run"), *recipe.train_args]
         train += ["--device", args.device, "--seed", str(args.seed)]
@@ -319,7 +384,8 @@ def run(
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
             train += ["--car", "given"]
-        stage(log, started, f"fine-tuning {shipped}: {recipe.summary}")
+        with_rehearsal = f" + {rehearsal_runs(args)} rehearsal runs" if rehearsal else ""
+        stage(log, started, f"fine-tuning {shipped}: {recipe.summary}{with_rehearsal}")
         code = train_main(train)
         if code != 0:
             return code
@@ -373,7 +439,13 @@ def run(
             "card says more)",
             file=sys.stderr,
         )
-    card = model_card(args, recipe.summary, fraction, found, test_part, new_drives,
+    summary_text = recipe.summary + (
+        f", beside {rehearsal_runs(args)} simulated runs of cars like it (`--rehearse`: "
+        "training only)"
+        if rehearsal_runs(args)
+        else ""
+    )
+    card = model_card(args, summary_text, fraction, found, test_part, new_drives,
                       train_metrics, time.perf_counter() - started, uncertainty)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")

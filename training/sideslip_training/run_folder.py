@@ -18,6 +18,7 @@ RESUME_KEYS: Final = (
     "prior",
     "observer",
     "train_bags",
+    "rehearsal_bags",
     "val_bags",
     "normalizer",
     "particle_threads",

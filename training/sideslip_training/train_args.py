@@ -60,6 +60,15 @@ def train_parser() -> argparse.ArgumentParser:
         help="test bags, scored once after training (model and baselines, in metrics.json)",
     )
     p.add_argument(
+        "--rehearse",
+        nargs="+",
+        metavar="DIR",
+        help="more bags (the project's own topics; e.g. sideslip-generate runs of cars like "
+        "--data's) for training only, never validation, test or the intervals: with "
+        "--init, keeps what the start model knew beyond the recordings' range "
+        "(docs/evaluation/fit-bags, 'Rehearsal')",
+    )
+    p.add_argument(
         "--split",
         choices=["auto", "bag", "time"],
         default="auto",

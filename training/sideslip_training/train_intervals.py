@@ -149,7 +149,9 @@ def _fit_range(plan: TrainPlan) -> Any:
     from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
 
     assert plan.init is not None and plan.init.meta.uncertainty is not None
-    runs = [*plan.data.train_runs, *plan.data.val_runs]
+    # The recordings only: rehearsal trains the model beyond them, but the scale was
+    # calibrated on the recordings, and it is their range the σ is known to hold in.
+    runs = [*plan.data.recorded_train_runs, *plan.data.val_runs]
     return FitRange.of_samples(
         *(
             np.concatenate([getattr(r.samples, name) for r in runs])

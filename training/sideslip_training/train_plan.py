@@ -190,6 +190,7 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         topic_map=args.topic_map,
         stride=args.stride,
         mirror=args.mirror,
+        rehearse=args.rehearse,
     )
     data = load_training_data(
         choice,
@@ -216,7 +217,8 @@ def run_config(args: argparse.Namespace, command: str, plan: TrainPlan) -> dict[
         "features": list(plan.features),
         "prior": args.prior,
         "observer": plan.spec.observer,
-        "train_bags": [r.name for r in data.train_runs],
+        "train_bags": [r.name for r in data.recorded_train_runs],
+        "rehearsal_bags": [r.name for r in data.rehearsal_runs],
         "val_bags": [r.name for r in data.val_runs],
         "test_bags": [r.name for r in data.test_runs],
         # The mode the parts were really split by (chosen on all of --data, before a

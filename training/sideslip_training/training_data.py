@@ -70,6 +70,9 @@ class DataChoice:
     stride: int | None
     mirror: str = "no"
     """``yes``, ``no`` or ``auto`` (:func:`wants_mirror`)."""
+    rehearse: Sequence[str] | None = None
+    """Bags in the project's own topics (never read through ``topic_map``) added to the
+    training part only: :func:`load_training_data`."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +91,14 @@ class TrainingData:
     stride: int
     split: str
     mirror: bool = False
+    rehearsal_runs: tuple[Run, ...] = ()
+    """The ``--rehearse`` runs, also in ``train_runs`` (after any mirrored ones)."""
+
+    @property
+    def recorded_train_runs(self) -> list[Run]:
+        """``train_runs`` without the rehearsal: the recordings the model is fitted to."""
+        rehearsal = {id(r) for r in self.rehearsal_runs}
+        return [r for r in self.train_runs if id(r) not in rehearsal]
 
 
 MIRROR_SUFFIX: Final = "~mirror"
@@ -191,6 +202,8 @@ def load_training_data(
     if mirror:
         train_runs = with_mirrored(train_runs)
         log(f"mirror: {len(train_runs) // 2} training run(s) also mirrored left-right")
+    rehearsal = _rehearsal(choice, load, [*train_runs, *val_runs, *test_runs], log)
+    train_runs = [*train_runs, *rehearsal]
     runs = [*train_runs, *val_runs]
     check_features(runs, spec.channels)
     if spec.needs_observer:
@@ -211,8 +224,10 @@ def load_training_data(
     stride = choice.stride
     if stride is None:
         # Little data (a recording of minutes): every window, not every 10th; big data
-        # (the fleet, over a million samples) keeps the profile's stride.
-        stride = min(max_stride, max(1, recorded // SAMPLES_PER_STRIDE))
+        # (the fleet, over a million samples) keeps the profile's stride. Rehearsal
+        # counts: it is data the epochs go through.
+        total = recorded + sum(len(r) for r in rehearsal)
+        stride = min(max_stride, max(1, total // SAMPLES_PER_STRIDE))
     train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
     val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
@@ -225,8 +240,42 @@ def load_training_data(
         f"{len(val_runs)} validation run(s), {len(val.ends)} windows (stride {stride})"
     )
     return TrainingData(
-        runs, train_runs, val_runs, test_runs, normalizer, train, val, stride, mode, mirror
+        runs,
+        train_runs,
+        val_runs,
+        test_runs,
+        normalizer,
+        train,
+        val,
+        stride,
+        mode,
+        mirror,
+        tuple(rehearsal),
     )
+
+
+def _rehearsal(
+    choice: DataChoice, load: dict[str, Any], others: Sequence[Run], log: Callable[[str], None]
+) -> list[Run]:
+    """The ``--rehearse`` runs: simulated (or other labelled) driving beside the user's
+    recordings, so that fine-tuning on a few minutes of one car's gentle driving does not
+    forget what the start model knew about the limit (docs/evaluation/fit-bags,
+    "Rehearsal"). They train only: validation, the test, early stopping, the intervals'
+    calibration and their range stay on the recordings. Read in the project's own topics
+    (a topic map is for the user's bags) at the model's step."""
+    if not choice.rehearse:
+        return []
+    runs, report = load_runs(choice.rehearse, **{**load, "topic_map": None})
+    log(f"rehearsal: {report}")
+    shared = {r.path for r in runs} & {r.path for r in others}
+    if shared:
+        raise CliError(
+            f"--rehearse shares {len(shared)} bag(s) with --data, --val or --test, e.g. "
+            f"{min(shared)}: rehearsal is other driving than the recordings'"
+        )
+    if not runs:
+        raise CliError(f"--rehearse {' '.join(choice.rehearse)}: no bag read")
+    return runs
 
 
 def sample_period_s(runs: Sequence[Run]) -> float:
