@@ -65,3 +65,28 @@ def test_observer_values_are_the_ukf_back_ends_parameters():
         observer.check_values({"min_speed": 3.0})
     with pytest.raises(DatasetError, match="observer values given"):
         InputSpec(("x_v_mps",), "none", observer={"min_speed_mps": 3.0})
+
+
+def test_a_run_with_its_own_car_source_keeps_its_record_when_the_given_car_is_asked(
+    sim_bag_dir: Path, tmp_path: Path
+):
+    """``--rehearse`` runs (``car_source="recorded"``) read their simulated car's true
+    parameters beside recordings run with the given files (``--car given``)."""
+    import dataclasses
+
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+
+    run = load_runs([sim_bag_dir])[0][0]
+    record = run.run_metadata["vehicle"]
+    other = {**observer.params_of_vehicle(record), "mass_kg": 2222.0}
+    given = tmp_path / "given.ukf.yaml"
+    given.write_text(yaml.safe_dump(other))
+    assert observer.run_params(run, str(given), car="given")[0]["mass_kg"] == 2222.0
+    own = dataclasses.replace(run, car_source="recorded")
+    assert observer.run_params(own, str(given), car="given")[0] == observer.params_of_vehicle(
+        record
+    )
+    vehicle = VehicleDescription.from_mapping({**record, "mass_kg": 2222.0})
+    spec = InputSpec(("x_v_mps", "vehicle.mass_kg"), "none", vehicle=vehicle, car="given")
+    assert spec.run_vehicle(run) == vehicle
+    assert spec.run_vehicle(own) == VehicleDescription.from_mapping(record)

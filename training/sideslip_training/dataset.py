@@ -134,6 +134,9 @@ class Run:
         truncated: the bag was damaged; ``samples`` are (part of) its readable part.
         run_metadata: the run's parameters from the bag ({} when it has none).
         bag: the bag name that :func:`split_runs` splits on (defaults to ``name``).
+        car_source: where this run's car parameters come from
+            (:data:`~.inputs.CAR_SOURCES`), over the model's ``--car``; None: the
+            model's. ``sideslip-train --rehearse`` runs take their own records.
     """
 
     name: str
@@ -143,6 +146,7 @@ class Run:
     truncated: bool = False
     run_metadata: dict[str, Any] = field(default_factory=dict)
     bag: str = ""
+    car_source: str | None = None
 
     def __post_init__(self) -> None:
         if not self.bag:

@@ -124,7 +124,8 @@ class InputSpec:
         """The run's car: from its bag's metadata, else the spec's; None when not needed."""
         if not self.needs_vehicle:
             return None
-        recorded = None if self.car == "given" else run.run_metadata.get("vehicle")
+        car = run.car_source or self.car
+        recorded = None if car == "given" else run.run_metadata.get("vehicle")
         if recorded is not None:
             try:
                 return VehicleDescription.from_mapping(recorded, f"{run.name}: vehicle")
@@ -135,7 +136,7 @@ class InputSpec:
                 f"{run.name}: the model reads the vehicle's nominal parameters, but "
                 + (
                     "the given car is asked for"
-                    if self.car == "given"
+                    if car == "given"
                     else "the bag records no vehicle"
                 )
                 + "; give one (a vehicle description YAML)"

@@ -121,6 +121,7 @@ def run_params(
 
     from .physics_params import steering_limit_m
 
+    car = run.car_source or car
     vehicle = run.run_metadata.get("vehicle")
     recorded = isinstance(vehicle, Mapping)
     if recorded and car == "recorded":

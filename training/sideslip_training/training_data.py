@@ -262,10 +262,16 @@ def _rehearsal(
     forget what the start model knew about the limit (docs/evaluation/fit-bags,
     "Rehearsal"). They train only: validation, the test, early stopping, the intervals'
     calibration and their range stay on the recordings. Read in the project's own topics
-    (a topic map is for the user's bags) at the model's step."""
+    (a topic map is for the user's bags) at the model's step.
+
+    Each takes its car from its own bag's record (a simulation's true parameters, as the
+    fleet models were trained), whatever ``--car`` says for the recordings: rehearsing
+    a corrected filter run with another car's file teaches corrections the node will
+    never need (measured: docs/evaluation/fit-bags, "Rehearsal")."""
     if not choice.rehearse:
         return []
     runs, report = load_runs(choice.rehearse, **{**load, "topic_map": None})
+    runs = [dataclasses.replace(r, car_source="recorded") for r in runs]
     log(f"rehearsal: {report}")
     shared = {r.path for r in runs} & {r.path for r in others}
     if shared:
