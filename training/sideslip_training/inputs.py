@@ -134,11 +134,7 @@ class InputSpec:
         if self.vehicle is None:
             raise DatasetError(
                 f"{run.name}: the model reads the vehicle's nominal parameters, but "
-                + (
-                    "the given car is asked for"
-                    if car == "given"
-                    else "the bag records no vehicle"
-                )
+                + ("the given car is asked for" if car == "given" else "the bag records no vehicle")
                 + "; give one (a vehicle description YAML)"
             )
         return self.vehicle
