@@ -71,6 +71,8 @@ STR_NAMES = {
     "vehicle_file",
     "observer_params_file",
     "outside_fleet",
+    "beyond_fit_range",
+    "start_model_file",
     "engine",
     "frame_id",
     "topic_map_file",

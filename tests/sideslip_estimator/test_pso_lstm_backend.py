@@ -194,6 +194,77 @@ def test_sigma_widens_while_the_window_reaches_beyond_the_fitted_recordings(
     assert est.beyond_fit_range  # the node's status counts it (sigma_widened)
 
 
+def test_beyond_the_fitted_recordings_the_start_models_estimate_and_sigma_are_published(
+    tmp_path: Path,
+) -> None:
+    """beyond_fit_range: start (auto when the start model is found) publishes, while the
+    window reaches beyond the fitted recordings, what the start model alone would; model
+    keeps the fitted model's estimate with σ widened."""
+    from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
+
+    coefficients = (1e-8, 2.7e-5, 1.2e-7, 4.8e-4)
+    start = write_model(
+        tmp_path / "start.safetensors", seed=1, uncertainty=Uncertainty(coefficients, 1.0).to_dict()
+    )
+    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(5.0, 1.0, 2.0, WINDOW))
+    fitted = write_model(tmp_path / "fitted.safetensors", uncertainty=unc.to_dict())
+    files = {"model_file": str(fitted), "start_model_file": str(start)}
+    gated = PsoLstmBackend(files, WINDOW)
+    assert "beyond its recordings: start.safetensors's estimate" in gated.model_id
+    own = PsoLstmBackend({**files, "beyond_fit_range": "model"}, WINDOW)
+    alone = PsoLstmBackend({"model_file": str(start)}, WINDOW)
+    rows, stamps = make_rows(WINDOW)  # |a_y| ≤ 4 m/s²: inside
+    inside, mine = gated.update(rows, stamps), own.update(rows, stamps)
+    assert inside == mine and inside is not None and not inside.beyond_fit_range
+    rows = rows.copy()
+    rows[0, 3] = 7.0  # the oldest sample at 7 m/s²: beyond
+    beyond, mine, theirs = (b.update(rows, stamps) for b in (gated, own, alone))
+    assert beyond is not None and theirs is not None and mine is not None
+    assert (beyond.beta_rad, beyond.variance_rad2) == (theirs.beta_rad, theirs.variance_rad2)
+    assert beyond.beyond_fit_range and beyond.beta_rad != mine.beta_rad
+    assert mine.beyond_fit_range  # model: its own estimate, σ widened
+
+
+def test_beyond_fit_range_start_needs_a_range_and_a_start_model(tmp_path: Path) -> None:
+    from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
+
+    coefficients = (1e-8, 2.7e-5, 1.2e-7, 4.8e-4)
+    plain = write_model(
+        tmp_path / "plain.safetensors", uncertainty=Uncertainty(coefficients, 1.0).to_dict()
+    )
+    with pytest.raises(BackendError, match="records no range of recordings"):
+        PsoLstmBackend({"model_file": str(plain), "beyond_fit_range": "start"}, WINDOW)
+    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(5.0, 1.0, 2.0, WINDOW))
+    fitted = write_model(tmp_path / "fitted.safetensors", uncertainty=unc.to_dict())
+    with pytest.raises(BackendError, match=r"set pso_lstm\.start_model_file"):
+        PsoLstmBackend({"model_file": str(fitted), "beyond_fit_range": "start"}, WINDOW)
+    # auto without a start model to find: the fitted model's own estimate, σ widened.
+    assert (
+        "beyond its recordings" not in PsoLstmBackend({"model_file": str(fitted)}, WINDOW).model_id
+    )
+    other = write_model(tmp_path / "other.safetensors", "lstm", "measurable")
+    with pytest.raises(BackendError, match="its step or inputs differ"):
+        PsoLstmBackend({"model_file": str(fitted), "start_model_file": str(other)}, WINDOW)
+    with pytest.raises(BackendError, match="beyond_fit_range must be one of"):
+        PsoLstmBackend({"model_file": str(fitted), "beyond_fit_range": "never"}, WINDOW)
+
+
+def test_the_start_model_is_the_shipped_one_the_file_names_with_its_training_data() -> None:
+    import dataclasses
+
+    from sideslip_estimator.backends.model_files import read_model, start_model_name
+
+    shipped = read_model("fleet_lstm_paper")[1]
+    named = {"init": "fleet_lstm_paper.safetensors", "init_data": shipped.training_data_digest}
+    assert start_model_name(dataclasses.replace(shipped, provenance=named)) == "fleet_lstm_paper"
+    for provenance in (
+        {**named, "init_data": "sha256:another"},  # the shipped model was replaced since
+        {"init": "my_car.safetensors", "init_data": shipped.training_data_digest},
+        {},
+    ):
+        assert start_model_name(dataclasses.replace(shipped, provenance=provenance)) is None
+
+
 def test_model_id_names_the_file_architecture_and_data(tmp_path: Path) -> None:
     path = write_model(tmp_path / "paper_bi.safetensors", "bilstm", hidden=8, layers=2)
     backend = PsoLstmBackend({"model_file": str(path), "threads": 1}, WINDOW)

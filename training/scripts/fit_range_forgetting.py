@@ -6,7 +6,8 @@ Per car, MAE [deg] on its drives (``--drives``) of the fitted model, of the ship
 ``fleet_ukf_measurable`` zero-shot (the fit's start) and of the two gated by the
 recordings' range (the shipped model's β̂ while the input window reaches beyond
 :class:`~sideslip_msgs_py.uncertainty.FitRange`, the fitted model's within): what a
-node that falls back beyond the range would publish. Writes ``OUT`` (JSON), prints a
+node that falls back beyond the range would publish; and *blended*: the mean of the two
+models' β̂ beyond the range, the fitted model's within. Writes ``OUT`` (JSON), prints a
 markdown table.
 
     python training/scripts/fit_range_forgetting.py --cars data/fit-bags-gentle/fleet2_car00{0..3} \
@@ -33,7 +34,7 @@ from fit_bags_folder import fitted_car, study_parser
 
 START = "fleet_ukf_measurable"
 TEST_FRACTION = 0.3
-COLUMNS = ("fitted", "shipped", "gated")
+COLUMNS = ("fitted", "shipped", "gated", "blended")
 
 
 def fit_range_of(work: Path, meta) -> FitRange:  # type: ignore[no-untyped-def]
@@ -71,7 +72,12 @@ def main(argv: list[str] | None = None) -> int:
             flags = fit_range.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)
             beyond.append(flags[w - 1 :][ok])
         f, sh, b = (np.concatenate(x) for x in (fitted, shipped, beyond))
-        errors = {"fitted": f, "shipped": sh, "gated": np.where(b, sh, f)}
+        errors = {
+            "fitted": f,
+            "shipped": sh,
+            "gated": np.where(b, sh, f),
+            "blended": np.where(b, 0.5 * (sh + f), f),
+        }
         mae = {k: float(np.degrees(np.abs(e)).mean()) for k, e in errors.items()}
         mae["beyond share"] = float(b.mean())
         if b.any():

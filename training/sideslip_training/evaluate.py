@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
@@ -260,11 +260,19 @@ def evaluate_runs(
     observer_params_file: str | None = None,
     car: str = "recorded",
     filters: Mapping[str, str] | None = None,
+    beyond_fit_range: str = "auto",
 ) -> list[Trace]:
     """Traces of every estimator on every run: baselines first (β = 0, kinematic raw and
     smoothed, then the physics ``filters``: back-end name → params file), then the models
     (``vehicle``, ``observer_params_file``: the car of runs whose bags record none, for
-    models that read it; ``car``: where the cars come from; see :func:`predict_run`)."""
+    models that read it; ``car``: where the cars come from; see :func:`predict_run`).
+
+    ``beyond_fit_range``: as the estimator's parameter: a model fine-tuned on one car's
+    recordings publishes, while its window reaches beyond their range, the estimate and
+    σ of the shipped model it started from (``auto``, when that model is shipped with
+    the same training data; ``start`` requires it), or its own (``model``)."""
+    car_kwargs = {"vehicle": vehicle, "observer_params_file": observer_params_file, "car": car}
+    starts = {name: start_of(meta, beyond_fit_range, name) for name, _, meta in models}
     traces = []
     for run in runs:
         ref = run.samples.beta_rad()[window_steps - 1 :]
@@ -282,31 +290,68 @@ def evaluate_runs(
                 (FILTER_LABELS[backend], physics_filter(run, backend, params_file, window_steps))
             )
         sigmas: dict[str, FloatArray] = {}
+        s = run.samples
         for name, model, meta in models:
             if meta.window_steps != window_steps:
                 raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
-            estimators.append(
-                (
-                    name,
-                    predict_run(
-                        model,
-                        meta,
-                        run,
-                        vehicle=vehicle,
-                        observer_params_file=observer_params_file,
-                        car=car,
-                    ),
-                )
-            )
+            est = predict_run(model, meta, run, **car_kwargs)
+            var = None
             if meta.uncertainty is not None:
-                s = run.samples
                 var = Uncertainty.from_dict(meta.uncertainty).variance(
                     s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
-                )
-                sigmas[name] = np.sqrt(var[window_steps - 1 :])
+                )[window_steps - 1 :]
+            start = starts[name]
+            if start is not None:
+                # As the node: beyond the recordings' range the start model's estimate
+                # and σ, where this model has an estimate at all.
+                start_net, start_meta = start
+                fit = Uncertainty.from_dict(meta.uncertainty).fit_range
+                assert fit is not None and start_meta.uncertainty is not None
+                flags = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)
+                gate = flags[window_steps - 1 :] & np.isfinite(est)
+                est = np.where(gate, predict_run(start_net, start_meta, run, **car_kwargs), est)
+                start_var = Uncertainty.from_dict(start_meta.uncertainty).variance(
+                    s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
+                )[window_steps - 1 :]
+                var = np.where(gate, start_var, var)
+            estimators.append((name, est))
+            if var is not None:
+                sigmas[name] = np.sqrt(var)
         for name, est in estimators:
             traces.append(Trace(run.name, name, t, est, ref, sigmas.get(name)))
     return traces
+
+
+BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
+
+
+def start_of(meta: ModelMetadata, mode: str, name: str) -> tuple[SideslipNet, ModelMetadata] | None:
+    """The start model a fine-tuned model's estimate falls back to beyond its
+    recordings' range (``beyond_fit_range``: see :func:`evaluate_runs`), or None.
+
+    Raises ValueError for an unknown mode, or for ``start`` when the model records no
+    range or its start model is not shipped with the same training data."""
+    from sideslip_estimator.backends.model_files import start_model_name
+
+    from .export import load_model
+    from .init_model import resolve
+
+    if mode not in BEYOND_FIT_RANGE:
+        raise ValueError(f"beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}")
+    fit = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
+    start = None if fit is None else start_model_name(meta)
+    if mode == "start" and start is None:
+        raise ValueError(
+            f"{name}: --beyond-fit-range start, but the model "
+            + (
+                "records no range of recordings"
+                if fit is None
+                else "names no shipped start model with its training data"
+            )
+        )
+    if mode == "model" or start is None:
+        return None
+    return load_model(resolve(start))
 
 
 def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:

@@ -48,6 +48,15 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="write into an existing --out")
     p.add_argument("--smoothing", type=int, default=20, help="smoothed baseline: samples averaged")
     p.add_argument("--title", default="", help="heading of the markdown table")
+    p.add_argument(
+        "--beyond-fit-range",
+        choices=["auto", "start", "model"],
+        default="auto",
+        help="a model fine-tuned on one car's recordings (sideslip-fit --bags), while its "
+        "window reaches beyond their range: start: the shipped model it started from "
+        "(estimate and σ); model: its own, σ widened; auto (default, as the node): start "
+        "when that model is shipped with the same training data",
+    )
     add_car_files_arguments(p)
     p.add_argument(
         "--single-track-params",
@@ -162,8 +171,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             observer_params_file=observer_file,
             car=args.car,
             filters=filters,
+            beyond_fit_range=args.beyond_fit_range,
         )
-    except (DatasetError, VehicleDescriptionError, FilterError) as err:
+    except (DatasetError, VehicleDescriptionError, FilterError, ValueError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     md = table_markdown(traces, args.title)

@@ -75,3 +75,21 @@ def read_model(
         return tensors, meta, f"{path.name} (shipped)"
     except ArtifactError as err:
         raise BackendError(f"pso_lstm.model_file: {err}") from None
+
+
+def start_model_name(meta: ModelMetadata) -> str | None:
+    """The shipped model ``meta``'s model was fine-tuned from (``sideslip-train --init``),
+    when that model is still shipped with the training data it had then; else None (a
+    model trained from scratch, started from a file of the user's, or a start model
+    since replaced)."""
+    init = meta.provenance.get("init")
+    if not isinstance(init, str) or not init.endswith(".safetensors"):
+        return None
+    name = init.removesuffix(".safetensors")
+    if name not in shipped_models():
+        return None
+    try:
+        start = read_model(name)[1]
+    except BackendError:
+        return None
+    return name if start.training_data_digest == meta.provenance.get("init_data") else None

@@ -51,6 +51,15 @@ is given: ``fleet_ukf_paper`` (the
 kinematic inputs plus the UKF) when ``observer_params_file`` names the car's file, else
 ``fleet_lstm_paper`` (the kinematic inputs only; nothing about the car needed).
 
+Beyond a fine-tuned model's recordings: a model ``sideslip-fit --bags`` fine-tuned on one
+car records the range of the recordings it was fitted on (``FitRange`` in its σ). While
+the input window reaches beyond it, ``pso_lstm.beyond_fit_range`` chooses: ``start``
+publishes the estimate and σ of the model it was fine-tuned from (the node runs both,
+every sample), ``model`` this model's with σ widened, ``auto`` (default) ``start`` when
+that model is found (``start_model_file``, or the shipped model the file names with the
+same training data). Fine-tuned on gentle driving, a model forgets the limit the start
+model knew (docs/evaluation/fit-bags, "Beyond the recordings").
+
 Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
 :data:`DEFAULT_SIGMA_RAD` (1°) squared. A constant, not a per-sample uncertainty.
@@ -86,10 +95,11 @@ from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
 from .model_context import fleet_check, observer_for, vehicle_for
-from .model_files import default_model, read_model
+from .model_files import default_model, read_model, start_model_name
 from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
+BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
@@ -145,6 +155,22 @@ class PsoLstmBackend:
             "node's status WARN.",
         ),
         ParameterSpec(
+            "beyond_fit_range",
+            "auto",
+            "For a model fine-tuned on one car's recordings (sideslip-fit --bags; its σ "
+            "records their range): what to publish while the input window reaches beyond "
+            "that range. start: the estimate and σ of the model it started from "
+            "(start_model_file), run beside it on every sample; model: this model's, σ "
+            "widened; auto: start when that model is found, else model.",
+        ),
+        ParameterSpec(
+            "start_model_file",
+            "",
+            "The model a fine-tuned model_file started from (a path or a shipped name), for "
+            "beyond_fit_range; empty = the shipped model the file names as its start, if it "
+            "is shipped with the same training data.",
+        ),
+        ParameterSpec(
             "engine",
             "numba",
             "numba: the streaming engine (all in-flight windows advance by one batched LSTM "
@@ -170,6 +196,7 @@ class PsoLstmBackend:
             raise BackendError(f"pso_lstm.threads must be >= 1, got {threads}")
         observer_file = str(v["observer_params_file"])
         tensors, meta, label = read_model(str(v["model_file"]), default_model(observer_file))
+        self._label = label
         if window_steps != meta.window_steps:
             msg = (
                 f"pso_lstm.model_file {label}: the model reads {meta.window_steps}-step windows "
@@ -217,14 +244,60 @@ class PsoLstmBackend:
         self._window_net = TorchWindow(tensors, meta, threads) if engine == "torch" else None
         self._rows_pushed = 0
         self._last_stamp = 0
+        self._start = self._start_backend(v, label)
+        """The model this one was fine-tuned from, published beyond the fit range."""
         self.model_id = (
             f"pso_lstm({label}: {meta.architecture} {meta.layers}x{meta.hidden_units}, "
             f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}, "
             f"engine {engine}"
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
+            + (
+                f", beyond its recordings: {self._start.label}'s estimate"
+                if self._start is not None
+                else ""
+            )
             + ")"
         )
+
+    def _start_backend(self, v: Mapping[str, object], label: str) -> PsoLstmBackend | None:
+        """The start model's back-end when ``beyond_fit_range`` asks for it (see the module
+        docstring); the same car files, engine and threads."""
+        mode = str(v["beyond_fit_range"])
+        if mode not in BEYOND_FIT_RANGE:
+            raise BackendError(
+                f"pso_lstm.beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}"
+            )
+        fit = self._uncertainty.fit_range if self._uncertainty is not None else None
+        if mode == "model" or (mode == "auto" and fit is None):
+            return None
+        if fit is None:
+            raise BackendError(
+                f"pso_lstm.beyond_fit_range start: {label} records no range of recordings "
+                "(it was not fine-tuned on a car's recordings by sideslip-fit --bags)"
+            )
+        start_file = str(v["start_model_file"]) or start_model_name(self.meta) or ""
+        if not start_file:
+            if mode == "auto":
+                return None
+            raise BackendError(
+                f"pso_lstm.beyond_fit_range start: {label} names no shipped start model "
+                f"with its training data ({self.meta.provenance.get('init', 'none')}); set "
+                "pso_lstm.start_model_file"
+            )
+        values = {**v, "model_file": start_file, "beyond_fit_range": "model"}
+        start = PsoLstmBackend({**values, "start_model_file": ""}, self.window_steps)
+        if start.dt_s != self.dt_s or start.channels != self.channels:
+            raise BackendError(
+                f"pso_lstm.start_model_file {start.label}: its step or inputs differ from "
+                f"{label}'s; give the model {label} was fine-tuned from"
+            )
+        return start
+
+    @property
+    def label(self) -> str:
+        """The model file's short name."""
+        return self._label
 
     @property
     def sample_period_s(self) -> float:
@@ -238,8 +311,23 @@ class PsoLstmBackend:
         if self._observer is not None:
             self._observer.reset()
             self._observed.clear()
+        if self._start is not None:
+            self._start.reset()
 
     def update(
+        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+    ) -> Estimate | None:
+        if self._start is None:
+            return self._update(rows, stamps_ns)
+        # The start model sees every sample, so that its windows and filter are current
+        # when the window leaves the recordings' range.
+        start = self._start.update(rows, stamps_ns)
+        own = self._update(rows, stamps_ns)
+        if own is None or not own.beyond_fit_range:
+            return own
+        return None if start is None else Estimate(start.beta_rad, start.variance_rad2, True)
+
+    def _update(
         self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
     ) -> Estimate | None:
         if self._observer is not None:

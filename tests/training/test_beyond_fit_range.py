@@ -1,0 +1,82 @@
+"""Beyond a fitted model's recordings (``beyond_fit_range``): ``sideslip-evaluate``
+scores what the node publishes, the start model's estimate and σ while the window
+reaches beyond the range the fine-tuning recorded, the fitted model's within."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sideslip_estimator.backends import create_backend
+from sideslip_estimator.estimator import Estimator, EstimatorParams
+from sideslip_estimator.replay import replay, replay_columns
+from sideslip_msgs_py.uncertainty import Uncertainty
+from sideslip_training.cli import train_main
+from sideslip_training.dataset import load_runs
+from sideslip_training.evaluate import evaluate_runs, predict_run, start_of
+from sideslip_training.export import load_model
+from sideslip_training.init_model import resolve
+
+TINY = ["--profile", "quick", "--max-epochs", "1", "--device", "cpu", "--quiet"]
+
+
+@pytest.fixture
+def fitted_and_drive(make_arrays, write_arrays, tmp_path: Path) -> tuple[Path, Path]:  # type: ignore[no-untyped-def]
+    """``fleet_lstm_paper`` fine-tuned on a gentle recording (|a_y| up to ~6 m/s²), and
+    another drive of twice its lateral acceleration."""
+    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
+    write_arrays("hard", make_arrays(2000, seed=5, v_x_mps=40.0), folder=tmp_path / "other")
+    out = tmp_path / "fitted.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--init", "fleet_lstm_paper", "--test-fraction", "0.3"]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+    return out, tmp_path / "other"
+
+
+def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publishes(
+    fitted_and_drive: tuple[Path, Path],
+) -> None:
+    out, drives = fitted_and_drive
+    net, meta = load_model(out)
+    start_net, start_meta = load_model(resolve("fleet_lstm_paper"))
+    run = load_runs([drives])[0][0]
+    w = meta.window_steps
+    traces = {
+        mode: next(
+            t
+            for t in evaluate_runs(
+                [run], [("fitted", net, meta)], window_steps=w, beyond_fit_range=mode
+            )
+            if t.estimator == "fitted"
+        )
+        for mode in ("auto", "model")
+    }
+    fit = Uncertainty.from_dict(meta.uncertainty).fit_range
+    assert fit is not None
+    s = run.samples
+    beyond = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[w - 1 :]
+    assert beyond.any() and (~beyond).any()
+    own, start = predict_run(net, meta, run), predict_run(start_net, start_meta, run)
+    np.testing.assert_array_equal(traces["auto"].estimate_rad, np.where(beyond, start, own))
+    np.testing.assert_array_equal(traces["model"].estimate_rad, own)
+    start_sigma = np.sqrt(
+        Uncertainty.from_dict(start_meta.uncertainty).variance(
+            s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
+        )[w - 1 :]
+    )
+    assert traces["auto"].sigma_rad is not None
+    np.testing.assert_allclose(traces["auto"].sigma_rad[beyond], start_sigma[beyond])
+    # The node, sample by sample through the estimator, publishes the same.
+    backend = create_backend("pso_lstm", {"model_file": str(out)}, w)
+    node = replay(Estimator(backend, EstimatorParams(window_steps=w)), replay_columns(s))
+    np.testing.assert_allclose(node.beta_rad[w - 1 :], traces["auto"].estimate_rad, atol=1e-6)
+
+
+def test_start_is_refused_for_a_model_without_a_range_and_unknown_modes() -> None:
+    _, shipped = load_model(resolve("fleet_lstm_paper"))
+    assert start_of(shipped, "auto", "shipped") is None
+    with pytest.raises(ValueError, match="records no range of recordings"):
+        start_of(shipped, "start", "shipped")
+    with pytest.raises(ValueError, match="beyond_fit_range must be one of"):
+        start_of(shipped, "always", "shipped")
