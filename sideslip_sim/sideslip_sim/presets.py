@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -260,8 +260,14 @@ def held_out() -> list[VehicleRun]:
     (80 km/h, 10 s). Steering amplitudes are each car's own: the STL whose steady-state
     lateral acceleration is 0.85·μ·g at the run's speed (the paper's fixed STL values
     would be a different severity on every car)."""
+    return benchmark_runs(held_out_vehicles())
+
+
+def benchmark_runs(cars: Mapping[str, VehicleParams]) -> list[VehicleRun]:
+    """The held-out benchmark's runs (see :func:`held_out`) on other ``cars`` (tag →
+    car): e.g. validation cars, to choose on the kind of driving the benchmark scores."""
     runs = []
-    for name, car in held_out_vehicles().items():
+    for name, car in cars.items():
         for mu in HELD_OUT_MU:
             for j, run in enumerate(HELD_OUT_RUNS):
                 tag = f"{name}_mu{round(mu * 10):02d}_{run}"

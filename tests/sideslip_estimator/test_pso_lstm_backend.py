@@ -225,6 +225,55 @@ def test_beyond_the_fitted_recordings_the_start_models_estimate_and_sigma_are_pu
     assert mine.beyond_fit_range  # model: its own estimate, σ widened
 
 
+def test_a_start_model_on_the_same_filter_shares_it_and_publishes_what_it_alone_would(
+    tmp_path: Path,
+) -> None:
+    """A residual on the UKF fine-tuned from the shipped ``fleet_ukf_measurable``: the
+    filter runs once for both models, and beyond the range the estimate is the one the
+    shipped model alone publishes, sample by sample."""
+    import dataclasses
+
+    import yaml
+
+    from sideslip_estimator.backends.model_files import read_model
+    from sideslip_msgs_py.artifact import write_artifact
+    from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_sim.vehicle import load_vehicle
+
+    tensors, meta, _ = read_model("fleet_ukf_measurable")
+    unc = Uncertainty.from_dict(meta.uncertainty)
+    unc = dataclasses.replace(unc, fit_range=FitRange(3.0, 0.08, 2 * unc.scale, WINDOW))
+    provenance = {
+        "init": "fleet_ukf_measurable.safetensors",
+        "init_data": meta.training_data_digest,
+    }
+    fitted = write_artifact(
+        tmp_path / "fitted.safetensors",
+        tensors,
+        dataclasses.replace(meta, uncertainty=unc.to_dict(), provenance=provenance),
+    )
+    car = tmp_path / "car.yaml"
+    desc = VehicleDescription.from_mapping(dataclasses.asdict(load_vehicle("paper_sedan")))
+    car.write_text(yaml.safe_dump(desc.to_dict()))
+    # paper_sedan lies outside the fleet's cars: the network's estimate all the same.
+    files = {"vehicle_file": str(car), "observer_params_file": "paper_sedan"}
+    files |= {"outside_fleet": "network"}
+    gated = PsoLstmBackend({"model_file": str(fitted), **files}, WINDOW)
+    assert gated._shared_observer
+    alone = PsoLstmBackend({"model_file": "fleet_ukf_measurable", **files}, WINDOW)
+    rows, stamps = make_rows(3 * WINDOW, seed=4)  # |a_y| up to 4 m/s²: in and out of 3
+    window = (slice(max(0, k + 1 - WINDOW), k + 1) for k in range(rows.shape[0]))
+    beyond = 0
+    for w in window:
+        mine, theirs = gated.update(rows[w], stamps[w]), alone.update(rows[w], stamps[w])
+        if mine is not None and mine.beyond_fit_range:
+            assert theirs is not None and mine.beta_rad == theirs.beta_rad
+            assert mine.variance_rad2 == theirs.variance_rad2
+            beyond += 1
+    assert beyond > 0
+
+
 def test_beyond_fit_range_start_needs_a_range_and_a_start_model(tmp_path: Path) -> None:
     from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
 

@@ -100,6 +100,13 @@ from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
 BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
+
+
+class _Unset:
+    """No observer output given (:meth:`PsoLstmBackend._update` runs the filter)."""
+
+
+_UNSET: Final = _Unset()
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
@@ -246,6 +253,18 @@ class PsoLstmBackend:
         self._last_stamp = 0
         self._start = self._start_backend(v, label)
         """The model this one was fine-tuned from, published beyond the fit range."""
+        self._shared_observer = (
+            self._start is not None
+            and self._observer is not None
+            and self._start._observer is not None
+            and self._start.meta.observer == meta.observer
+        )
+        """The start model reads this model's filter (the same settings and car file)."""
+        if self._shared_observer:
+            assert self._start is not None
+            # One filter object: the start's observer rows read its state (innovations)
+            # after this model's update of it.
+            self._start._observer = self._observer
         self.model_id = (
             f"pso_lstm({label}: {meta.architecture} {meta.layers}x{meta.hidden_units}, "
             f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}, "
@@ -319,20 +338,33 @@ class PsoLstmBackend:
     ) -> Estimate | None:
         if self._start is None:
             return self._update(rows, stamps_ns)
-        # The start model sees every sample, so that its windows and filter are current
-        # when the window leaves the recordings' range.
-        start = self._start.update(rows, stamps_ns)
-        own = self._update(rows, stamps_ns)
+        # The start model sees every sample, so that its windows are current when the
+        # window leaves the recordings' range. Both read the same filter (same settings,
+        # same car file): it runs once, for half the cost of two.
+        if self._shared_observer:
+            assert self._observer is not None
+            seen = self._observer.update(rows, stamps_ns)
+            start = self._start._update(rows, stamps_ns, seen)
+            own = self._update(rows, stamps_ns, seen)
+        else:
+            start = self._start.update(rows, stamps_ns)
+            own = self._update(rows, stamps_ns)
         if own is None or not own.beyond_fit_range:
             return own
         return None if start is None else Estimate(start.beta_rad, start.variance_rad2, True)
 
     def _update(
-        self, rows: npt.NDArray[np.float64], stamps_ns: npt.NDArray[np.int64]
+        self,
+        rows: npt.NDArray[np.float64],
+        stamps_ns: npt.NDArray[np.int64],
+        seen: Estimate | _Unset | None = _UNSET,
     ) -> Estimate | None:
+        """:meth:`update` of this model alone; ``seen``: the observer's output for this
+        sample when the caller ran it (a start model sharing the filter)."""
         if self._observer is not None:
             # The filter sees every sample, also while the window fills.
-            seen = self._observer.update(rows, stamps_ns)
+            if isinstance(seen, _Unset):
+                seen = self._observer.update(rows, stamps_ns)
             if self._prior_only and self.meta.prior == "ukf":
                 return seen  # outside the training cars: the UKF's estimate and variance
             self._observed.append(self._observer.observer_row(seen))
