@@ -74,7 +74,8 @@ def test_the_card_says_where_the_cars_sigma_holds_and_what_it_widens_to_beyond()
     unc = Uncertainty((1e-8, 2.7e-5, 1.2e-7, 4.8e-4), 0.8, fit_range=fit).to_dict()
     card = model_card(args, "recipe", 0.3, None, _scored(0.96), None, train, 12.0, unc)
     assert "(|a_y| ≤ 3.90 m/s², |β̇| ≤ 0.140 rad/s)" in card
-    assert "σ uses scale 2.47 (2 × the shipped model's)" in card
+    assert "the node publishes the shipped model's estimate and σ instead" in card
+    assert "σ at scale 2.47 (2 × the shipped model's)" in card
     assert "|a_y| ≤" not in _card(None)
     # 3.9 m/s² is gentle driving: the card says what that means for the fitted model.
     assert "**The recordings stay under 3.9 m/s² of lateral acceleration.**" in card

@@ -178,8 +178,11 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
         text += (
             f" That scale holds for driving like the recordings' (|a_y| ≤ "
             f"{fit.lateral_acceleration_mps2:.2f} m/s², |β̇| ≤ {fit.beta_rate_radps:.3f} rad/s); "
-            f"while the input window reaches beyond, σ uses scale {fit.outside_scale:.2f} "
-            f"({OUTSIDE_FACTOR:g} × the shipped model's) where that is wider."
+            "while the input window reaches beyond, the node publishes the shipped "
+            "model's estimate and σ instead (`pso_lstm.beyond_fit_range` `auto`, as the "
+            "tables below score it), or with `beyond_fit_range:=model` this model's, σ "
+            f"at scale {fit.outside_scale:.2f} ({OUTSIDE_FACTOR:g} × the shipped model's) "
+            "where that is wider."
         )
     gentle = gentle_recordings(stored)
     if gentle is not None:
@@ -188,7 +191,8 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
             "lateral acceleration.** "
             "Beyond that the fine-tuned network extrapolates: on validation cars fitted on "
             "driving under 4 m/s² it erred more than the shipped model on their harder "
-            "drives in 4 of 8 (mean MAE 0.071° against 0.055°; docs/evaluation/fit-bags). "
+            "drives in 4 of 8 (mean MAE 0.071° against 0.055°; with the node's fall-back "
+            "to the shipped model beyond the recordings 0.060°; docs/evaluation/fit-bags). "
             "Record driving nearer the limit (a skid pad, a closed course) and fit again, "
             "or keep the shipped model."
         )
