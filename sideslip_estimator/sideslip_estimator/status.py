@@ -84,7 +84,9 @@ class Observation:
     """The published standard deviation of each estimate since the previous status."""
     widened: int = 0
     """Of those, the estimates whose window reached beyond the driving a fine-tuned
-    model was fitted on (σ widened)."""
+    model was fitted on: σ widened, or (``pso_lstm.beyond_fit_range`` start) the start
+    model's estimate and σ published. The status key keeps its first name,
+    ``sigma_widened``, for the consumers that read it."""
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ class Status:
 
 def _sigma_values(sigmas_rad: Sequence[float], widened: int) -> dict[str, str]:
     """p50 / p95 of the published σ of β̂ [deg] since the previous status, and the share
-    of those estimates whose σ was widened beyond the model's fitted driving."""
+    of those estimates whose window reached beyond the model's fitted driving."""
     sig = np.degrees(np.asarray(sigmas_rad, dtype=float))
     if not sig.size:
         return {k: "n/a" for k in ("beta_sigma_deg_p50", "beta_sigma_deg_p95", "sigma_widened")}

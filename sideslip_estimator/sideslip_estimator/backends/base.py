@@ -25,8 +25,9 @@ class Estimate:
     beta_rad: float
     variance_rad2: float
     beyond_fit_range: bool = False
-    """The input window reached beyond the driving a fine-tuned model was fitted on, so
-    its σ was widened (:class:`~sideslip_msgs_py.uncertainty.FitRange`)."""
+    """The input window reached beyond the driving a fine-tuned model was fitted on
+    (:class:`~sideslip_msgs_py.uncertainty.FitRange`): its σ was widened, or its start
+    model's estimate and σ are these (``pso_lstm.beyond_fit_range``)."""
 
 
 class Backend(Protocol):
