@@ -248,20 +248,24 @@ def test_a_start_model_on_the_same_filter_shares_it_and_publishes_what_it_alone_
         "init": "fleet_ukf_measurable.safetensors",
         "init_data": meta.training_data_digest,
     }
+    desc = VehicleDescription.from_mapping(dataclasses.asdict(load_vehicle("paper_sedan")))
+    # As sideslip-fit stores it: the fitted model holds the car, the shipped start not.
     fitted = write_artifact(
         tmp_path / "fitted.safetensors",
         tensors,
-        dataclasses.replace(meta, uncertainty=unc.to_dict(), provenance=provenance),
+        dataclasses.replace(
+            meta, uncertainty=unc.to_dict(), provenance=provenance, vehicle=desc.to_dict()
+        ),
     )
     car = tmp_path / "car.yaml"
-    desc = VehicleDescription.from_mapping(dataclasses.asdict(load_vehicle("paper_sedan")))
     car.write_text(yaml.safe_dump(desc.to_dict()))
     # paper_sedan lies outside the fleet's cars: the network's estimate all the same.
-    files = {"vehicle_file": str(car), "observer_params_file": "paper_sedan"}
-    files |= {"outside_fleet": "network"}
-    gated = PsoLstmBackend({"model_file": str(fitted), **files}, WINDOW)
+    files = {"observer_params_file": "paper_sedan", "outside_fleet": "network"}
+    gated = PsoLstmBackend({"model_file": str(fitted), **files}, WINDOW)  # no vehicle_file
     assert gated._shared_observer
-    alone = PsoLstmBackend({"model_file": "fleet_ukf_measurable", **files}, WINDOW)
+    alone = PsoLstmBackend(
+        {"model_file": "fleet_ukf_measurable", "vehicle_file": str(car), **files}, WINDOW
+    )
     rows, stamps = make_rows(3 * WINDOW, seed=4)  # |a_y| up to 4 m/s²: in and out of 3
     window = (slice(max(0, k + 1 - WINDOW), k + 1) for k in range(rows.shape[0]))
     beyond = 0
@@ -292,8 +296,13 @@ def test_beyond_fit_range_start_needs_a_range_and_a_start_model(tmp_path: Path) 
         "beyond its recordings" not in PsoLstmBackend({"model_file": str(fitted)}, WINDOW).model_id
     )
     other = write_model(tmp_path / "other.safetensors", "lstm", "measurable")
-    with pytest.raises(BackendError, match="its step or inputs differ"):
-        PsoLstmBackend({"model_file": str(fitted), "start_model_file": str(other)}, WINDOW)
+    files = {"model_file": str(fitted), "start_model_file": str(other)}
+    with pytest.raises(BackendError, match=r"beyond_fit_range start model .*inputs differ"):
+        PsoLstmBackend({**files, "beyond_fit_range": "start"}, WINDOW)
+    # auto: the fitted model's own estimate, and a caveat the status WARNs with.
+    fallback = PsoLstmBackend(files, WINDOW)
+    assert "beyond its recordings" not in fallback.model_id
+    assert any("inputs differ" in c and "σ widened" in c for c in fallback.caveats)
     with pytest.raises(BackendError, match="beyond_fit_range must be one of"):
         PsoLstmBackend({"model_file": str(fitted), "beyond_fit_range": "never"}, WINDOW)
 

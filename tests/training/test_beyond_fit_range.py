@@ -15,7 +15,7 @@ from sideslip_estimator.replay import replay, replay_columns
 from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_training.cli import train_main
 from sideslip_training.dataset import load_runs
-from sideslip_training.evaluate import evaluate_runs, predict_run, start_of
+from sideslip_training.evaluate import StartModelError, evaluate_runs, predict_run, start_of
 from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 
@@ -73,10 +73,14 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
     np.testing.assert_allclose(node.beta_rad[w - 1 :], traces["auto"].estimate_rad, atol=1e-6)
 
 
-def test_start_is_refused_for_a_model_without_a_range_and_unknown_modes() -> None:
-    _, shipped = load_model(resolve("fleet_lstm_paper"))
+def test_start_is_refused_when_no_model_records_a_range_and_for_unknown_modes(
+    sim_bag_dir: Path,
+) -> None:
+    net, shipped = load_model(resolve("fleet_lstm_paper"))
     assert start_of(shipped, "auto", "shipped") is None
-    with pytest.raises(ValueError, match="records no range of recordings"):
-        start_of(shipped, "start", "shipped")
-    with pytest.raises(ValueError, match="beyond_fit_range must be one of"):
+    assert start_of(shipped, "start", "shipped") is None  # beside a fitted model: scored as is
+    run = load_runs([sim_bag_dir])[0][:1]
+    with pytest.raises(StartModelError, match="no model records a range of recordings"):
+        evaluate_runs(run, [("shipped", net, shipped)], window_steps=100, beyond_fit_range="start")
+    with pytest.raises(StartModelError, match="beyond_fit_range must be one of"):
         start_of(shipped, "always", "shipped")

@@ -52,3 +52,29 @@ def test_a_rehearsal_bag_that_is_also_a_recording_is_refused(
     args += ["--rehearse", str(tmp_path / "rec" / "drive"), "--test-fraction", "0.3"]
     assert train_main([*args, "--out", str(tmp_path / "m.safetensors"), *TINY]) != 0
     assert "--rehearse shares 1 bag(s)" in capsys.readouterr().err
+
+
+def test_a_rehearsal_bag_without_its_car_is_refused_for_a_model_that_reads_the_car(
+    make_arrays, write_arrays, compact_rwd_description, tmp_path: Path, capsys
+) -> None:
+    """Without a car record a rehearsal run would read the recordings' car: the
+    corrections of another car, which rehearsal must not teach."""
+    write_arrays("drive", make_arrays(4000, seed=3), folder=tmp_path / "rec")
+    write_arrays("other", make_arrays(2000, seed=5), folder=tmp_path / "sim")
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--features", "measurable_invariant", "--vehicle", str(compact_rwd_description)]
+    args += ["--rehearse", str(tmp_path / "sim"), "--test-fraction", "0.3"]
+    assert train_main([*args, "--out", str(tmp_path / "m.safetensors"), *TINY]) == 2
+    assert "--rehearse: other records no car" in capsys.readouterr().err
+
+
+def test_a_run_folder_from_before_rehearsal_resumes_as_one_without(tmp_path: Path) -> None:
+    from sideslip_training.run_folder import RESUME_KEYS, start_run_folder
+
+    config = {k: None for k in RESUME_KEYS} | {"rehearsal_bags": []}
+    (tmp_path / "run").mkdir()
+    old = {k: v for k, v in config.items() if k != "rehearsal_bags"}
+    (tmp_path / "run" / "config.json").write_text(json.dumps(old))
+    start_run_folder(tmp_path / "run", config, resume=True)  # no error
+    with pytest.raises(Exception, match="rehearsal_bags"):
+        start_run_folder(tmp_path / "run", config | {"rehearsal_bags": ["sim"]}, resume=True)

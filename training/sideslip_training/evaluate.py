@@ -273,6 +273,8 @@ def evaluate_runs(
     the same training data; ``start`` requires it), or its own (``model``)."""
     car_kwargs = {"vehicle": vehicle, "observer_params_file": observer_params_file, "car": car}
     starts = {name: start_of(meta, beyond_fit_range, name) for name, _, meta in models}
+    if beyond_fit_range == "start" and not any(starts.values()):
+        raise StartModelError("--beyond-fit-range start: no model records a range of recordings")
     traces = []
     for run in runs:
         ref = run.samples.beta_rad()[window_steps - 1 :]
@@ -309,7 +311,11 @@ def evaluate_runs(
                 assert fit is not None and start_meta.uncertainty is not None
                 flags = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)
                 gate = flags[window_steps - 1 :] & np.isfinite(est)
-                est = np.where(gate, predict_run(start_net, start_meta, run, **car_kwargs), est)
+                # The start model reads the car the fitted one reads (the node's too).
+                start_car = {**car_kwargs}
+                if vehicle is None and meta.vehicle is not None:
+                    start_car["vehicle"] = VehicleDescription.from_mapping(meta.vehicle)
+                est = np.where(gate, predict_run(start_net, start_meta, run, **start_car), est)
                 start_var = Uncertainty.from_dict(start_meta.uncertainty).variance(
                     s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
                 )[window_steps - 1 :]
@@ -325,29 +331,31 @@ def evaluate_runs(
 BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
 
 
+class StartModelError(ValueError):
+    """``beyond_fit_range`` asks for a start model that cannot be had."""
+
+
 def start_of(meta: ModelMetadata, mode: str, name: str) -> tuple[SideslipNet, ModelMetadata] | None:
     """The start model a fine-tuned model's estimate falls back to beyond its
     recordings' range (``beyond_fit_range``: see :func:`evaluate_runs`), or None.
 
-    Raises ValueError for an unknown mode, or for ``start`` when the model records no
-    range or its start model is not shipped with the same training data."""
+    Raises StartModelError for an unknown mode, or for ``start`` when the model records
+    a range but its start model is not shipped with the same training data. (Where the
+    node would publish the start model's UKF alone, a car outside its training cars, the
+    estimate here is the same but σ is the start model's, not the UKF's.)"""
     from sideslip_estimator.backends.model_files import start_model_name
 
     from .export import load_model
     from .init_model import resolve
 
     if mode not in BEYOND_FIT_RANGE:
-        raise ValueError(f"beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}")
+        raise StartModelError(f"beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}")
     fit = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
     start = None if fit is None else start_model_name(meta)
-    if mode == "start" and start is None:
-        raise ValueError(
-            f"{name}: --beyond-fit-range start, but the model "
-            + (
-                "records no range of recordings"
-                if fit is None
-                else "names no shipped start model with its training data"
-            )
+    if mode == "start" and fit is not None and start is None:
+        raise StartModelError(
+            f"{name}: --beyond-fit-range start, but the model names no shipped start model "
+            f"with its training data ({meta.provenance.get('init', 'none')})"
         )
     if mode == "model" or start is None:
         return None

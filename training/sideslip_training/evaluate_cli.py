@@ -82,6 +82,7 @@ def _evaluate_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     from .evaluate import (
         FilterError,
+        StartModelError,
         evaluate_runs,
         metrics_json,
         model_label,
@@ -173,7 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             filters=filters,
             beyond_fit_range=args.beyond_fit_range,
         )
-    except (DatasetError, VehicleDescriptionError, FilterError, ValueError) as err:
+    except (DatasetError, VehicleDescriptionError, FilterError, StartModelError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     md = table_markdown(traces, args.title)

@@ -212,19 +212,25 @@ def simulate_rehearsal(
         return None
     out = work / "rehearsal"
     stamp = work / "rehearsal.json"
-    key = {"car": desc.digest(), "runs": count, "seed": args.seed}
+    from sideslip_sim import __version__ as sim_version
+
+    # The simulator's version too: a folder from another simulator is not reused.
+    key = {"car": desc.digest(), "runs": count, "seed": args.seed, "sim": sim_version}
     if (out / "index.json").exists() and stamp.exists():
         if json.loads(stamp.read_text()) == key:
             stage(log, started, f"rehearsal: {count} runs already simulated (reused)")
             return out
     seed = args.seed + REHEARSAL_SEED
-    cars = sample_fleet(
-        -(-count // FLEET_RUNS_PER_CAR),
-        seed,
-        prefix=f"{desc.name}_rehearsal",
-        ranges=desc.ranges(),
-        exclude_digests=held_out_digests(),
-    ).vehicles
+    try:
+        cars = sample_fleet(
+            -(-count // FLEET_RUNS_PER_CAR),
+            seed,
+            prefix=f"{desc.name}_rehearsal",
+            ranges=desc.ranges(),
+            exclude_digests=held_out_digests(),
+        ).vehicles
+    except ValueError as err:  # FleetError: no plausible car around the description
+        raise CliError(f"--rehearse: no cars like the description to simulate ({err})") from None
     stage(log, started, f"rehearsal: simulating {count} runs of {len(cars)} cars like the car")
     stamp.unlink(missing_ok=True)
     prepare_output(out, force=True)

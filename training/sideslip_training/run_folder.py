@@ -62,7 +62,9 @@ def start_run_folder(run_dir: Path, config: Mapping[str, Any], *, resume: bool) 
         old = json.loads(config_path.read_text())
         # Compared as JSON would hold them (tuples as lists, paths as strings).
         json_config = json.loads(json.dumps({k: config[k] for k in RESUME_KEYS}, default=str))
-        changed = [k for k in RESUME_KEYS if old.get(k) != json_config[k]]
+        # A run folder from before a key existed holds its default.
+        defaults = {"rehearsal_bags": []}
+        changed = [k for k in RESUME_KEYS if old.get(k, defaults.get(k)) != json_config[k]]
         if changed:
             raise CliError(
                 f"--resume: {run_dir} was started with other {', '.join(changed)}; "

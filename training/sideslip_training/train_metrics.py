@@ -56,6 +56,9 @@ def pooled_test_metrics(
         vehicle=spec.vehicle if spec is not None else None,
         observer_params_file=spec.observer_params_file if spec is not None else None,
         car=spec.car if spec is not None else "recorded",
+        # The trained network itself, also beyond its recordings' range (the node and
+        # sideslip-fit's card hand over to the start model there: beyond_fit_range).
+        beyond_fit_range="model",
     )
     out: dict[str, dict[str, float]] = {
         name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}

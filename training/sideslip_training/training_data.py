@@ -202,7 +202,8 @@ def load_training_data(
     if mirror:
         train_runs = with_mirrored(train_runs)
         log(f"mirror: {len(train_runs) // 2} training run(s) also mirrored left-right")
-    rehearsal = _rehearsal(choice, load, [*train_runs, *val_runs, *test_runs], log)
+    needs_car = spec.needs_vehicle or spec.needs_observer
+    rehearsal = _rehearsal(choice, load, [*train_runs, *val_runs, *test_runs], log, needs_car)
     train_runs = [*train_runs, *rehearsal]
     runs = [*train_runs, *val_runs]
     check_features(runs, spec.channels)
@@ -224,10 +225,9 @@ def load_training_data(
     stride = choice.stride
     if stride is None:
         # Little data (a recording of minutes): every window, not every 10th; big data
-        # (the fleet, over a million samples) keeps the profile's stride. Rehearsal
-        # counts: it is data the epochs go through.
-        total = recorded + sum(len(r) for r in rehearsal)
-        stride = min(max_stride, max(1, total // SAMPLES_PER_STRIDE))
+        # (the fleet, over a million samples) keeps the profile's stride. The
+        # recordings decide, not a rehearsal beside them: it would thin the validation.
+        stride = min(max_stride, max(1, recorded // SAMPLES_PER_STRIDE))
     train = WindowIndex.build(train_runs, spec, normalizer, window, stride)
     val = WindowIndex.build(val_runs, spec, normalizer, window, stride)
     if len(train.ends) == 0 or len(val.ends) == 0:
@@ -255,7 +255,11 @@ def load_training_data(
 
 
 def _rehearsal(
-    choice: DataChoice, load: dict[str, Any], others: Sequence[Run], log: Callable[[str], None]
+    choice: DataChoice,
+    load: dict[str, Any],
+    others: Sequence[Run],
+    log: Callable[[str], None],
+    needs_car: bool,
 ) -> list[Run]:
     """The ``--rehearse`` runs: simulated (or other labelled) driving beside the user's
     recordings, so that fine-tuning on a few minutes of one car's gentle driving does not
@@ -281,6 +285,13 @@ def _rehearsal(
         )
     if not runs:
         raise CliError(f"--rehearse {' '.join(choice.rehearse)}: no bag read")
+    unknown = [r.name for r in runs if not isinstance(r.run_metadata.get("vehicle"), dict)]
+    if needs_car and unknown:
+        raise CliError(
+            f"--rehearse: {unknown[0]} records no car, and the model reads the car: a "
+            "rehearsal run takes its own car, not the recordings' (sideslip-generate "
+            "bags record theirs)"
+        )
     return runs
 
 

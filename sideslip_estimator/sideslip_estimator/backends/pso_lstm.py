@@ -88,6 +88,7 @@ from sideslip_msgs_py.model_inputs import (
 )
 from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.uncertainty import Uncertainty
+from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from ..inputs import X_V as _X_V
 from ..inputs import Y_A as _Y_A
@@ -196,7 +197,15 @@ class PsoLstmBackend:
         ),
     )
 
-    def __init__(self, values: Mapping[str, object], window_steps: int) -> None:
+    def __init__(
+        self,
+        values: Mapping[str, object],
+        window_steps: int,
+        *,
+        car: VehicleDescription | None = None,
+    ) -> None:
+        """``car``: the car to read when ``vehicle_file`` is empty and the model stores
+        none (a start model reading its fine-tuned model's car)."""
         v = parameter_values(self.name, self.parameters, values)
         threads = int(v["threads"])
         if threads < 1:
@@ -211,7 +220,11 @@ class PsoLstmBackend:
                 f"window_steps:={meta.window_steps}"
             )
             raise BackendError(msg)
-        self._vehicle = vehicle_for(meta, str(v["vehicle_file"]), label)
+        self._vehicle = (
+            car
+            if car is not None and meta.needs_vehicle and not v["vehicle_file"]
+            else vehicle_for(meta, str(v["vehicle_file"]), label)
+        )
         self._channels = meta.channels
         self.channels = tuple(meta.channels)
         self._observer = observer_for(meta, observer_file, label, window_steps)
@@ -273,6 +286,7 @@ class PsoLstmBackend:
             + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
             + (
                 f", beyond its recordings: {self._start.label}'s estimate"
+                + (" (its UKF's, outside its training cars)" if self._start._prior_only else "")
                 if self._start is not None
                 else ""
             )
@@ -305,12 +319,29 @@ class PsoLstmBackend:
                 "pso_lstm.start_model_file"
             )
         values = {**v, "model_file": start_file, "beyond_fit_range": "model"}
-        start = PsoLstmBackend({**values, "start_model_file": ""}, self.window_steps)
-        if start.dt_s != self.dt_s or start.channels != self.channels:
-            raise BackendError(
-                f"pso_lstm.start_model_file {start.label}: its step or inputs differ from "
-                f"{label}'s; give the model {label} was fine-tuned from"
-            )
+        values["start_model_file"] = ""
+        # The fitted model's car passed its own checks; the start model's range of cars
+        # may not hold it, but refusing the node for the fall-back would be worse.
+        if values["outside_fleet"] == "refuse":
+            values["outside_fleet"] = "auto"
+        try:
+            start = PsoLstmBackend(values, self.window_steps, car=self._vehicle)
+            if start.dt_s != self.dt_s or start.channels != self.channels:
+                raise BackendError(
+                    f"its step or inputs differ from {label}'s; give the model {label} was "
+                    "fine-tuned from (pso_lstm.start_model_file)"
+                )
+        except BackendError as err:
+            message = f"pso_lstm.beyond_fit_range start model {start_file}: {err}"
+            if mode == "start":
+                raise BackendError(message) from None
+            # auto: the fitted model's own estimate beyond the range, and a WARN.
+            self.caveats = (*self.caveats, f"{message}; publishing {label}'s own, σ widened")
+            return None
+        self.caveats = (
+            *self.caveats,
+            *(f"beyond_fit_range start model: {c}" for c in start.caveats),
+        )
         return start
 
     @property
