@@ -68,6 +68,13 @@ def terms(
     return np.stack([np.ones_like(v), 1.0 / v**2, a_y**2, beta_rate**2], axis=-1)
 
 
+GENTLE_LATERAL_MPS2: Final = 5.0
+"""Recordings whose lateral range stays under this [m/s², about 0.5 g] are gentle: a
+model fine-tuned on them forgets the limit its start model knew (docs/evaluation/
+fit-bags, "Gentle recordings"), so the node hands over to the start model beyond them
+(``pso_lstm.beyond_fit_range`` auto); fits on driving beyond it keep their own estimate."""
+
+
 @dataclass(frozen=True)
 class FitRange:
     """The driving a fine-tuned model's scale was fitted on: |a_y| ≤
@@ -138,6 +145,11 @@ class FitRange:
         return (np.abs(a_y) > self.lateral_acceleration_mps2) | (
             np.abs(_beta_rate(v, a_y, r)) > self.beta_rate_radps
         )
+
+    @property
+    def gentle(self) -> bool:
+        """The recordings stayed under :data:`GENTLE_LATERAL_MPS2` of |a_y|."""
+        return self.lateral_acceleration_mps2 < GENTLE_LATERAL_MPS2
 
     def reaches_beyond(
         self,

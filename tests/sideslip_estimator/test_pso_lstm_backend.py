@@ -206,10 +206,21 @@ def test_beyond_the_fitted_recordings_the_start_models_estimate_and_sigma_are_pu
     start = write_model(
         tmp_path / "start.safetensors", seed=1, uncertainty=Uncertainty(coefficients, 1.0).to_dict()
     )
-    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(5.0, 1.0, 2.0, WINDOW))
+    # Recordings under 5 m/s² (gentle): auto hands over; beyond them it would not.
+    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(4.5, 1.0, 2.0, WINDOW))
     fitted = write_model(tmp_path / "fitted.safetensors", uncertainty=unc.to_dict())
     files = {"model_file": str(fitted), "start_model_file": str(start)}
     gated = PsoLstmBackend(files, WINDOW)
+    varied = Uncertainty(coefficients, 0.5, fit_range=FitRange(6.0, 1.0, 2.0, WINDOW))
+    near_limit = write_model(tmp_path / "varied.safetensors", uncertainty=varied.to_dict())
+    auto = PsoLstmBackend({**files, "model_file": str(near_limit)}, WINDOW)
+    assert "beyond its recordings" not in auto.model_id
+    assert (
+        "beyond its recordings"
+        in PsoLstmBackend(
+            {**files, "model_file": str(near_limit), "beyond_fit_range": "start"}, WINDOW
+        ).model_id
+    )
     assert "beyond its recordings: start.safetensors's estimate" in gated.model_id
     own = PsoLstmBackend({**files, "beyond_fit_range": "model"}, WINDOW)
     alone = PsoLstmBackend({"model_file": str(start)}, WINDOW)
@@ -217,7 +228,7 @@ def test_beyond_the_fitted_recordings_the_start_models_estimate_and_sigma_are_pu
     inside, mine = gated.update(rows, stamps), own.update(rows, stamps)
     assert inside == mine and inside is not None and not inside.beyond_fit_range
     rows = rows.copy()
-    rows[0, 3] = 7.0  # the oldest sample at 7 m/s²: beyond
+    rows[0, 3] = 7.0  # the oldest sample at 7 m/s²: beyond both ranges
     beyond, mine, theirs = (b.update(rows, stamps) for b in (gated, own, alone))
     assert beyond is not None and theirs is not None and mine is not None
     assert (beyond.beta_rad, beyond.variance_rad2) == (theirs.beta_rad, theirs.variance_rad2)
@@ -287,7 +298,7 @@ def test_beyond_fit_range_start_needs_a_range_and_a_start_model(tmp_path: Path) 
     )
     with pytest.raises(BackendError, match="records no range of recordings"):
         PsoLstmBackend({"model_file": str(plain), "beyond_fit_range": "start"}, WINDOW)
-    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(5.0, 1.0, 2.0, WINDOW))
+    unc = Uncertainty(coefficients, 0.5, fit_range=FitRange(4.0, 1.0, 2.0, WINDOW))
     fitted = write_model(tmp_path / "fitted.safetensors", uncertainty=unc.to_dict())
     with pytest.raises(BackendError, match=r"set pso_lstm\.start_model_file"):
         PsoLstmBackend({"model_file": str(fitted), "beyond_fit_range": "start"}, WINDOW)

@@ -50,7 +50,7 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
             )
             if t.estimator == "fitted"
         )
-        for mode in ("auto", "model")
+        for mode in ("start", "model", "auto")
     }
     fit = Uncertainty.from_dict(meta.uncertainty).fit_range
     assert fit is not None
@@ -58,19 +58,23 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
     beyond = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[w - 1 :]
     assert beyond.any() and (~beyond).any()
     own, start = predict_run(net, meta, run), predict_run(start_net, start_meta, run)
-    np.testing.assert_array_equal(traces["auto"].estimate_rad, np.where(beyond, start, own))
+    np.testing.assert_array_equal(traces["start"].estimate_rad, np.where(beyond, start, own))
     np.testing.assert_array_equal(traces["model"].estimate_rad, own)
+    # Recordings up to ~6 m/s² are not gentle: auto keeps the fitted model's own.
+    assert not fit.gentle
+    np.testing.assert_array_equal(traces["auto"].estimate_rad, own)
     start_sigma = np.sqrt(
         Uncertainty.from_dict(start_meta.uncertainty).variance(
             s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
         )[w - 1 :]
     )
-    assert traces["auto"].sigma_rad is not None
-    np.testing.assert_allclose(traces["auto"].sigma_rad[beyond], start_sigma[beyond])
+    assert traces["start"].sigma_rad is not None
+    np.testing.assert_allclose(traces["start"].sigma_rad[beyond], start_sigma[beyond])
     # The node, sample by sample through the estimator, publishes the same.
-    backend = create_backend("pso_lstm", {"model_file": str(out)}, w)
-    node = replay(Estimator(backend, EstimatorParams(window_steps=w)), replay_columns(s))
-    np.testing.assert_allclose(node.beta_rad[w - 1 :], traces["auto"].estimate_rad, atol=1e-6)
+    for mode in ("start", "auto"):
+        backend = create_backend("pso_lstm", {"model_file": str(out), "beyond_fit_range": mode}, w)
+        node = replay(Estimator(backend, EstimatorParams(window_steps=w)), replay_columns(s))
+        np.testing.assert_allclose(node.beta_rad[w - 1 :], traces[mode].estimate_rad, atol=1e-6)
 
 
 def test_start_is_refused_when_no_model_records_a_range_and_for_unknown_modes(

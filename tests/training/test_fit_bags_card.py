@@ -85,3 +85,5 @@ def test_the_card_says_where_the_cars_sigma_holds_and_what_it_widens_to_beyond()
     card = model_card(args, "recipe", 0.3, None, _scored(0.96), None, train, 12.0,
                       varied.to_dict())  # fmt: skip
     assert "The recordings stay under" not in card
+    # Not gentle: the node keeps this model's estimate beyond, σ widened.
+    assert "the node publishes the shipped" not in card and "σ at scale 2.47" in card

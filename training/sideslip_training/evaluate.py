@@ -269,8 +269,9 @@ def evaluate_runs(
 
     ``beyond_fit_range``: as the estimator's parameter: a model fine-tuned on one car's
     recordings publishes, while its window reaches beyond their range, the estimate and
-    σ of the shipped model it started from (``auto``, when that model is shipped with
-    the same training data; ``start`` requires it), or its own (``model``)."""
+    σ of the shipped model it started from (``auto``: when the recordings were gentle
+    and that model is shipped with the same training data; ``start``: always, requiring
+    it), or its own (``model``)."""
     car_kwargs = {"vehicle": vehicle, "observer_params_file": observer_params_file, "car": car}
     starts = {name: start_of(meta, beyond_fit_range, name) for name, _, meta in models}
     if beyond_fit_range == "start" and not any(starts.values()):
@@ -351,6 +352,8 @@ def start_of(meta: ModelMetadata, mode: str, name: str) -> tuple[SideslipNet, Mo
     if mode not in BEYOND_FIT_RANGE:
         raise StartModelError(f"beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}")
     fit = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
+    if mode == "auto" and fit is not None and not fit.gentle:
+        return None  # as the node: a fit on driving near the limit keeps its own
     start = None if fit is None else start_model_name(meta)
     if mode == "start" and fit is not None and start is None:
         raise StartModelError(

@@ -55,7 +55,8 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         help="a model fine-tuned on one car's recordings (sideslip-fit --bags), while its "
         "window reaches beyond their range: start: the shipped model it started from "
         "(estimate and σ); model: its own, σ widened; auto (default, as the node): start "
-        "when that model is shipped with the same training data",
+        "when the recordings stayed under 5 m/s² and that model is shipped with the same "
+        "training data",
     )
     add_car_files_arguments(p)
     p.add_argument(

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sideslip_msgs_py.uncertainty import GENTLE_LATERAL_MPS2
+
 
 @dataclass(frozen=True)
 class Scored:
@@ -107,7 +109,7 @@ NARROW_SHARE = 0.90
 on the fit's own drives is too narrow for them."""
 
 
-GENTLE_MPS2 = 5.0
+GENTLE_MPS2 = GENTLE_LATERAL_MPS2
 """Recordings whose lateral range (:class:`~sideslip_msgs_py.uncertainty.FitRange`) stays
 under this [m/s², about 0.5 g] get a warning: on validation cars fitted on driving under
 4 m/s² the fitted model erred more than the shipped one on harder drives in 4 of 8
@@ -178,10 +180,15 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
         text += (
             f" That scale holds for driving like the recordings' (|a_y| ≤ "
             f"{fit.lateral_acceleration_mps2:.2f} m/s², |β̇| ≤ {fit.beta_rate_radps:.3f} rad/s); "
-            "while the input window reaches beyond, the node publishes the shipped "
-            "model's estimate and σ instead (`pso_lstm.beyond_fit_range` `auto`, as the "
-            "tables below score it), or with `beyond_fit_range:=model` this model's, σ "
-            f"at scale {fit.outside_scale:.2f} ({OUTSIDE_FACTOR:g} × the shipped model's) "
+            + (
+                "while the input window reaches beyond, the node publishes the shipped "
+                "model's estimate and σ instead (`pso_lstm.beyond_fit_range` `auto` for "
+                "recordings this gentle, as the tables below score it), or with "
+                "`beyond_fit_range:=model` this model's, σ "
+                if fit.gentle
+                else "while the input window reaches beyond, σ "
+            )
+            + f"at scale {fit.outside_scale:.2f} ({OUTSIDE_FACTOR:g} × the shipped model's) "
             "where that is wider."
         )
     gentle = gentle_recordings(stored)

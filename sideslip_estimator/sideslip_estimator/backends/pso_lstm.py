@@ -56,9 +56,11 @@ car records the range of the recordings it was fitted on (``FitRange`` in its σ
 the input window reaches beyond it, ``pso_lstm.beyond_fit_range`` chooses: ``start``
 publishes the estimate and σ of the model it was fine-tuned from (the node runs both,
 every sample), ``model`` this model's with σ widened, ``auto`` (default) ``start`` when
-that model is found (``start_model_file``, or the shipped model the file names with the
-same training data). Fine-tuned on gentle driving, a model forgets the limit the start
-model knew (docs/evaluation/fit-bags, "Beyond the recordings").
+the recordings were gentle (|a_y| under ``GENTLE_LATERAL_MPS2``) and that model is found
+(``start_model_file``, or the shipped model the file names with the same training data),
+else ``model``. Fine-tuned on gentle driving, a model forgets the limit the start model
+knew; fitted on driving near the limit, it did better beyond its range on its own
+(docs/evaluation/fit-bags, "Beyond the recordings").
 
 Variance: the square of the validation RMSE stored in the artifact
 (``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
@@ -169,7 +171,9 @@ class PsoLstmBackend:
             "records their range): what to publish while the input window reaches beyond "
             "that range. start: the estimate and σ of the model it started from "
             "(start_model_file), run beside it on every sample; model: this model's, σ "
-            "widened; auto: start when that model is found, else model.",
+            "widened; auto: start when the recordings stayed under 5 m/s² of lateral "
+            "acceleration (gentle driving, where fine-tuning forgets the limit) and that "
+            "model is found, else model.",
         ),
         ParameterSpec(
             "start_model_file",
@@ -302,7 +306,9 @@ class PsoLstmBackend:
                 f"pso_lstm.beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}"
             )
         fit = self._uncertainty.fit_range if self._uncertainty is not None else None
-        if mode == "model" or (mode == "auto" and fit is None):
+        # auto: only a fit on gentle recordings forgets the limit; one on driving near it
+        # kept its own estimate better beyond its range on validation cars.
+        if mode == "model" or (mode == "auto" and (fit is None or not fit.gentle)):
             return None
         if fit is None:
             raise BackendError(
