@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Final
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -329,9 +329,6 @@ def evaluate_runs(
     return traces
 
 
-BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
-
-
 class StartModelError(ValueError):
     """``beyond_fit_range`` asks for a start model that cannot be had."""
 
@@ -344,7 +341,11 @@ def start_of(meta: ModelMetadata, mode: str, name: str) -> tuple[SideslipNet, Mo
     a range but its start model is not shipped with the same training data. (Where the
     node would publish the start model's UKF alone, a car outside its training cars, the
     estimate here is the same but σ is the start model's, not the UKF's.)"""
-    from sideslip_estimator.backends.model_files import start_model_name
+    from sideslip_estimator.backends.model_files import (
+        BEYOND_FIT_RANGE,
+        hands_over,
+        start_model_name,
+    )
 
     from .export import load_model
     from .init_model import resolve
@@ -352,17 +353,15 @@ def start_of(meta: ModelMetadata, mode: str, name: str) -> tuple[SideslipNet, Mo
     if mode not in BEYOND_FIT_RANGE:
         raise StartModelError(f"beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}")
     fit = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty).fit_range
-    if mode == "auto" and fit is not None and not fit.gentle:
-        return None  # as the node: a fit on driving near the limit keeps its own
-    start = None if fit is None else start_model_name(meta)
-    if mode == "start" and fit is not None and start is None:
+    if not hands_over(mode, fit):
+        return None
+    start = start_model_name(meta)
+    if mode == "start" and start is None:
         raise StartModelError(
             f"{name}: --beyond-fit-range start, but the model names no shipped start model "
             f"with its training data ({meta.provenance.get('init', 'none')})"
         )
-    if mode == "model" or start is None:
-        return None
-    return load_model(resolve(start))
+    return None if start is None else load_model(resolve(start))
 
 
 def pooled(traces: Sequence[Trace]) -> dict[str, Metrics]:

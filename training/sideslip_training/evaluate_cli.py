@@ -24,6 +24,8 @@ from .inputs import add_car_files_arguments
 
 
 def _evaluate_parser() -> argparse.ArgumentParser:
+    from sideslip_estimator.backends.model_files import BEYOND_FIT_RANGE
+
     p = argparse.ArgumentParser(
         prog="sideslip-evaluate",
         description=(
@@ -50,7 +52,7 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     p.add_argument("--title", default="", help="heading of the markdown table")
     p.add_argument(
         "--beyond-fit-range",
-        choices=["auto", "start", "model"],
+        choices=list(BEYOND_FIT_RANGE),
         default="auto",
         help="a model fine-tuned on one car's recordings (sideslip-fit --bags), while its "
         "window reaches beyond their range: start: the shipped model it started from "

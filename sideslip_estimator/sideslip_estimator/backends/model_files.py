@@ -14,10 +14,13 @@ from typing import Final
 import numpy as np
 
 from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata, read_artifact
+from sideslip_msgs_py.uncertainty import FitRange
 
 from .base import BackendError
 
 SHIPPED_DIR: Final = "data/models"
+BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
+"""``pso_lstm.beyond_fit_range`` (and ``sideslip-evaluate --beyond-fit-range``)."""
 SHIPPED_MODEL: Final = f"{SHIPPED_DIR}/fleet_lstm_paper.safetensors"
 """The default model, relative to the sideslip_estimator package: needs nothing but the
 measurements (no car parameters)."""
@@ -93,3 +96,12 @@ def start_model_name(meta: ModelMetadata) -> str | None:
     except BackendError:
         return None
     return name if start.training_data_digest == meta.provenance.get("init_data") else None
+
+
+def hands_over(mode: str, fit: FitRange | None) -> bool:
+    """Whether ``beyond_fit_range`` ``mode`` asks for the start model beyond ``fit`` (the
+    model's range of recordings; None: it records none): ``start`` always, ``auto`` only
+    for gentle recordings (:attr:`FitRange.gentle`: a fit on driving near the limit kept
+    its own estimate better beyond its range on validation cars), ``model`` never. The
+    node and ``sideslip-evaluate`` both decide by it."""
+    return fit is not None and (mode == "start" or (mode == "auto" and fit.gentle))

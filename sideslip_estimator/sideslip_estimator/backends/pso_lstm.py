@@ -98,11 +98,16 @@ from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming import StreamingLstm
 from .base import BackendError, Estimate, parameter_values
 from .model_context import fleet_check, observer_for, vehicle_for
-from .model_files import default_model, read_model, start_model_name
+from .model_files import (
+    BEYOND_FIT_RANGE,
+    default_model,
+    hands_over,
+    read_model,
+    start_model_name,
+)
 from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
-BEYOND_FIT_RANGE: Final = ("auto", "start", "model")
 
 
 class _Unset:
@@ -306,15 +311,13 @@ class PsoLstmBackend:
                 f"pso_lstm.beyond_fit_range must be one of {BEYOND_FIT_RANGE}, got {mode!r}"
             )
         fit = self._uncertainty.fit_range if self._uncertainty is not None else None
-        # auto: only a fit on gentle recordings forgets the limit; one on driving near it
-        # kept its own estimate better beyond its range on validation cars.
-        if mode == "model" or (mode == "auto" and (fit is None or not fit.gentle)):
-            return None
-        if fit is None:
+        if mode == "start" and fit is None:
             raise BackendError(
                 f"pso_lstm.beyond_fit_range start: {label} records no range of recordings "
                 "(it was not fine-tuned on a car's recordings by sideslip-fit --bags)"
             )
+        if not hands_over(mode, fit):
+            return None
         start_file = str(v["start_model_file"]) or start_model_name(self.meta) or ""
         if not start_file:
             if mode == "auto":
