@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
+from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import predict_run
 from sideslip_training.export import load_model
@@ -46,6 +47,7 @@ OBSERVER_SETS = {
     "+ window mean of a_y innovation²": ["1", "1/v2", "ay2", "bdot2", "innay2w"],
     "+ both innovations²": ["1", "1/v2", "ay2", "bdot2", "innr2w", "innay2w"],
     "+ (a_y / μ̂ g)²": ["1", "1/v2", "ay2", "bdot2", "ayfric2"],
+    "+ μ̂²": ["1", "1/v2", "ay2", "bdot2", "muhat2"],
     "+ both innovations² + (a_y / μ̂ g)²": [
         "1",
         "1/v2",
@@ -59,11 +61,16 @@ OBSERVER_SETS = {
 MU_THIRDS = ((0.0, 0.5), (0.5, 0.8), (0.8, 1.01))
 
 
-def samples(model: str, data: str) -> dict[str, np.ndarray]:
+def samples(model: str, data: str | list[str]) -> dict[str, np.ndarray]:
     """Per sample with a full window: error [rad], candidate term inputs, run, car, μ."""
     net, meta = load_model(resolve(model))
-    runs, _ = load_runs([data], step_s=meta.dt_s)
-    index = {r["bag"]: r for r in json.loads((Path(data) / "index.json").read_text())["runs"]}
+    folders = [data] if isinstance(data, str) else list(data)
+    runs, _ = load_runs(folders, step_s=meta.dt_s)
+    index = {
+        r["bag"]: r
+        for folder in folders
+        for r in json.loads((Path(folder) / "index.json").read_text())["runs"]
+    }
     w = meta.window_steps
     cars: dict[str, int] = {}
     parts: list[dict[str, np.ndarray]] = []
@@ -92,6 +99,7 @@ def samples(model: str, data: str) -> dict[str, np.ndarray]:
             "absay": np.abs(s.y_a_mps2[w - 1 :]),
             "run": np.full(est.size, i),
             "car": np.full(est.size, car),
+            "vehicle": np.full(est.size, entry["vehicle"]),
             "mu": np.full(est.size, float(entry["mu"])),
             **observed,
         }
@@ -117,6 +125,7 @@ def observer_terms(meta, run, window_mean) -> dict[str, np.ndarray]:  # type: ig
         "innr2w": window_mean(inn_r**2),
         "innay2w": window_mean(inn_ay**2),
         "ayfric2": (run.samples.y_a_mps2[w - 1 :] / (mu[w - 1 :] * 9.81)) ** 2,
+        "muhat2": mu[w - 1 :] ** 2,
     }
 
 
@@ -131,11 +140,95 @@ def fit(t: np.ndarray, e2: np.ndarray) -> np.ndarray:
     return np.exp(result.x)
 
 
+def shipped_sigma(model: str, d: dict[str, np.ndarray]) -> np.ndarray:
+    """σ [rad] as the model file gives it (its four terms, coefficients and scale)."""
+    _, meta = load_model(resolve(model))
+    if meta.uncertainty is None:
+        raise SystemExit(f"{model}: the model stores no σ model")
+    u = Uncertainty.from_dict(meta.uncertainty)
+    t = np.stack([d[k] for k in SETS["shipped (1, 1/v², a_y², β̇²)"]], axis=1)
+    return u.scale * np.sqrt(t @ np.asarray(u.coefficients))
+
+
+def cells_in_band(inside: np.ndarray, d: dict[str, np.ndarray]) -> tuple[int, int, dict[str, int]]:
+    """Car × μ cells (exact μ, as the benchmark drives them) in 93-97 %: count, cells,
+    and the count per μ."""
+    count, total, per_mu = 0, 0, {}
+    for mu in np.unique(d["mu"]):
+        for c in np.unique(d["car"]):
+            m = (d["car"] == c) & (d["mu"] == mu)
+            if not m.any():
+                continue
+            ok = 0.93 <= inside[m].mean() <= 0.97
+            count, total = count + ok, total + 1
+            per_mu[f"{mu:.1f}"] = per_mu.get(f"{mu:.1f}", 0) + ok
+    return count, total, per_mu
+
+
+def per_car(inside: np.ndarray, d: dict[str, np.ndarray], cars: np.ndarray) -> str:
+    """Cars (of ``cars``) whose pooled share lies in 93-97 %, and the lowest share."""
+    shares = np.array([inside[d["car"] == c].mean() for c in cars])
+    good = int(np.sum((shares >= 0.93) & (shares <= 0.97)))
+    return f"cars {good}/{cars.size} (min {shares.min():.3f})"
+
+
+def score_other_cars(
+    model: str, fit_data: list[str], score_data: list[str], check: list[str] | None = None
+) -> None:
+    """Coefficients by likelihood on half of ``fit_data``'s runs, the conformal scale on
+    the other half; scored per car × μ cell on ``score_data`` (other cars), and per car
+    on ``check``'s cars that ``fit_data`` does not hold (other driving, e.g. fleet-style)."""
+    d = samples(model, fit_data)
+    e = samples(model, score_data)
+    f = samples(model, check) if check else None
+    if f is not None:
+        seen = set(np.unique(d["vehicle"]))
+        f_cars = np.unique(f["car"][~np.isin(f["vehicle"], list(seen))])
+    runs = np.unique(d["run"])
+    order = np.random.default_rng(0).permutation(runs)
+    fit_rows, scale_rows = np.isin(d["run"], order[::2]), np.isin(d["run"], order[1::2])
+    print(f"fit on {runs.size} runs, scored on {np.unique(e['run']).size} runs of other cars")
+    inside = np.abs(e["err"]) <= Z * shipped_sigma(model, e)
+    n, total, per_mu = cells_in_band(inside, e)
+    label = "as the model file has it"
+    extra = ""
+    if f is not None:
+        extra = "; check " + per_car(np.abs(f["err"]) <= Z * shipped_sigma(model, f), f, f_cars)
+    print(f"{label:40s} pooled {inside.mean():.3f}; cells {n}/{total} {per_mu}{extra}")
+    sets = {**SETS, **(OBSERVER_SETS if "innr2w" in d else {})}
+    for name, keys in sets.items():
+        t = np.stack([d[k] for k in keys], axis=1)
+        c = fit(t[fit_rows], d["err"][fit_rows] ** 2)
+        ratio = np.sort(np.abs(d["err"][scale_rows]) / np.sqrt(t[scale_rows] @ c))
+        scale = ratio[min(ratio.size - 1, math.ceil((ratio.size + 1) * 0.95) - 1)] / Z
+        sigma = scale * np.sqrt(np.stack([e[k] for k in keys], axis=1) @ c)
+        inside = np.abs(e["err"]) <= Z * sigma
+        n, total, per_mu = cells_in_band(inside, e)
+        extra = ""
+        if f is not None:
+            f_sigma = scale * np.sqrt(np.stack([f[k] for k in keys], axis=1) @ c)
+            extra = "; check " + per_car(np.abs(f["err"]) <= Z * f_sigma, f, f_cars)
+        print(f"{name:40s} pooled {inside.mean():.3f}; cells {n}/{total} {per_mu}{extra}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", default="fleet_lstm_paper")
-    parser.add_argument("--data", default="data/fleet-val", help="validation bags (index.json)")
+    parser.add_argument(
+        "--data", nargs="+", default=["data/fleet-val"], help="validation bags (index.json)"
+    )
+    parser.add_argument(
+        "--score",
+        nargs="+",
+        help="score on these bags (other validation cars) per car × μ cell, fitting on --data",
+    )
+    parser.add_argument(
+        "--check", nargs="+", help="with --score: also per car on these bags' other cars"
+    )
     args = parser.parse_args(argv)
+    if args.score:
+        score_other_cars(args.model, args.data, args.score, args.check)
+        return 0
     d = samples(args.model, args.data)
     runs = d["run"]
     order = np.random.default_rng(0).permutation(np.unique(runs))
