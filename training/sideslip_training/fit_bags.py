@@ -441,8 +441,9 @@ def run(
         print(
             f"sideslip-fit: warning: the recordings stay under {math.ceil(gentle * 10) / 10:.1f} "
             "m/s² of lateral "
-            "acceleration; beyond, the fitted model may err more than the shipped one (the "
-            "card says more)",
+            "acceleration; beyond, the fitted model may err more than the shipped one, and "
+            "on held-out cars such fits were no better than it on average (the card says "
+            "more)",
             file=sys.stderr,
         )
     summary_text = recipe.summary + (

@@ -199,7 +199,10 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
             "Beyond that the fine-tuned network extrapolates: on validation cars fitted on "
             "driving under 4 m/s² it erred more than the shipped model on their harder "
             "drives in 4 of 8 (mean MAE 0.071° against 0.055°; with the node's fall-back "
-            "to the shipped model beyond the recordings 0.060°; docs/evaluation/fit-bags). "
+            "to the shipped model beyond the recordings 0.060°). On the six held-out cars "
+            "fitted the same way, with the fall-back, 0.053° against the shipped model's "
+            "0.054° (better on 3 of 6), and σ too narrow on low-friction roads (70–87 % "
+            "inside at μ 0.4 on four cars; docs/evaluation/fit-bags). "
             "Record driving nearer the limit (a skid pad, a closed course) and fit again, "
             "or keep the shipped model."
         )
