@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sideslip_estimator.backends import create_backend
 from sideslip_estimator.backends.ukf import TUNED_PARAMETERS, UkfBackend
+from sideslip_msgs_py.sample import SampleArrays
 from sideslip_training.config import PsoSettings
 from sideslip_training.ukf_tuning import (
     TuningError,
@@ -93,3 +96,53 @@ def test_cli_without_bags_is_one_line_and_exit_2(
 ) -> None:
     assert main(["--data", str(tmp_path)]) == 2
     assert "no bags" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def compact_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One 2-s sine-steer run of another car than the shipped default's."""
+    from sideslip_sim.generate import generate, single_vehicle
+    from sideslip_sim.maneuvers import Maneuver
+    from sideslip_sim.vehicle import load_vehicle
+
+    out = tmp_path_factory.mktemp("ukf_compact")
+    maneuvers = [Maneuver("sine_70", "sine_steer", 2.0, 70.0, 300.0, ay_fraction=0.6)]
+    generate(single_vehicle(load_vehicle("compact_rwd"), maneuvers), out, progress=False)
+    return out
+
+
+def test_recorded_cars_replay_each_bag_with_its_own_car(compact_bag: Path, tmp_path: Path) -> None:
+    from sideslip_msgs_py.bag import read_bag
+    from sideslip_training.observer import BACKEND, params_of_vehicle
+    from sideslip_training.physics_params import params_yaml
+    from sideslip_training.ukf_tuning import replay
+
+    (run,) = load_replay_runs([compact_bag], recorded=True)
+    assert run.car_params is not None and run.stl_limit_m is not None
+    vehicle = read_bag(compact_bag / "sine_70").run_metadata["vehicle"]
+    own = tmp_path / "compact.ukf.yaml"
+    own.write_text(params_yaml(BACKEND, "compact_rwd", params_of_vehicle(vehicle), "test"))
+    (plain,) = load_replay_runs([compact_bag])
+    assert plain.car_params is None
+    recorded = replay(run, DEFAULTS)
+    # The same as giving that car's file by hand, and not the default car's estimate.
+    by_hand = replay(plain, {**DEFAULTS, "params_file": str(own)})
+    assert recorded == pytest.approx(by_hand, nan_ok=True)
+    default_car = replay(plain, DEFAULTS)
+    ok = ~(np.isnan(recorded) | np.isnan(default_car))
+    assert ok.sum() > 500 and np.max(np.abs(recorded[ok] - default_car[ok])) > 1e-4
+    result = tune([run], "recorded", PsoSettings(iterations=0, swarm_size=1))
+    assert result.default_rmse_deg == pytest.approx(beta_rmse_deg([run], DEFAULTS))
+
+
+def test_recorded_cars_refuse_a_bag_without_a_car_by_name(
+    make_arrays: Callable[..., SampleArrays],
+    write_arrays: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    write_arrays("no_car", make_arrays(400), folder=tmp_path / "anonymous")
+    with pytest.raises(TuningError, match=r"no_car.*records no vehicle"):
+        load_replay_runs([tmp_path / "anonymous"], recorded=True)
+    assert main(["--data", str(tmp_path / "anonymous"), "--params-file", "recorded"]) == 2
+    assert "records no vehicle" in capsys.readouterr().err

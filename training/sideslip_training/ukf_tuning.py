@@ -12,6 +12,12 @@ more candidate, so the result is never worse than them on the training bags.
 Only training bags may be given: the result becomes the back-end's defaults, which are
 then scored on test data and held-out vehicles that no tuning saw.
 
+``--params-file recorded`` tunes over many cars at once: each bag is replayed with the
+``ukf`` params of the car its metadata records (its true nominal values, effective axles,
+as ``sideslip-train``'s observer and the held-out benchmark give the filter) and that
+car's steering limit (:func:`~.physics_params.steering_limit_m`), e.g. fleet training
+bags (``sideslip-generate --preset fleet --seed 1``).
+
 This module imports ``sideslip_estimator``: the back-end under tuning.
 
 How the shipped defaults were tuned (2 workers; 54 training bags, 0.2 M samples)::
@@ -33,6 +39,7 @@ import argparse
 import json
 import math
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -61,6 +68,10 @@ class TuningError(ValueError):
     """No usable bag, a bad parameter name, or settings the back-end refuses."""
 
 
+RECORDED = "recorded"
+"""``params_file`` value: each bag's own recorded car (module doc)."""
+
+
 @dataclass(frozen=True)
 class ReplayRun:
     """One bag's samples as plain columns (cheap to send to worker processes)."""
@@ -69,10 +80,15 @@ class ReplayRun:
     columns: tuple[Sequence[float | int], ...]
     """stamp, X_v, Y_v, X_a, Y_a, ψ̇, STL, STL rate per sample (Python numbers)."""
     beta_rad: np.ndarray
+    car_params: str | None = None
+    """The ``ukf`` params file text of the bag's recorded car (with ``recorded``)."""
+    stl_limit_m: float | None = None
+    """That car's steering limit [m] for the estimator's input check (``recorded``)."""
 
 
-def load_replay_runs(bags: Sequence[str | Path]) -> list[ReplayRun]:
-    """Each bag (a rosbag2 folder, or a folder of them) with ground truth, read once."""
+def load_replay_runs(bags: Sequence[str | Path], *, recorded: bool = False) -> list[ReplayRun]:
+    """Each bag (a rosbag2 folder, or a folder of them) with ground truth, read once;
+    ``recorded``: with the params of the car its metadata records (refused without one)."""
     paths: list[Path] = []
     for b in map(Path, bags):
         if (b / "metadata.yaml").is_file() or b.suffix == ".mcap":
@@ -85,21 +101,53 @@ def load_replay_runs(bags: Sequence[str | Path]) -> list[ReplayRun]:
         raise TuningError(f"no bags under {', '.join(map(str, bags))}")
     runs = []
     for path in paths:
-        s = read_bag(path).samples
-        beta = s.beta_rad()
+        bag = read_bag(path)
+        beta = bag.samples.beta_rad()
         if not np.any(np.isfinite(beta)):
             raise TuningError(f"{path}: no ground truth (tuning needs β)")
-        runs.append(ReplayRun(path.name, replay_columns(s), beta))
+        car: tuple[str | None, float | None] = (None, None)
+        if recorded:
+            car = _recorded_car(path, bag.run_metadata.get("vehicle"))
+        runs.append(ReplayRun(path.name, replay_columns(bag.samples), beta, *car))
     return runs
 
 
+def _recorded_car(path: Path, vehicle: object) -> tuple[str, float]:
+    """(``ukf`` params file text, steering limit [m]) of the car a bag records."""
+    from .dataset import DatasetError
+    from .observer import BACKEND, params_of_vehicle
+    from .physics_params import params_yaml, steering_limit_m
+
+    if not isinstance(vehicle, Mapping):
+        raise TuningError(f"{path}: --params-file {RECORDED}, but the bag records no vehicle")
+    try:
+        params = params_of_vehicle(vehicle)
+        limit = steering_limit_m(vehicle)
+    except (DatasetError, KeyError, ValueError) as err:
+        raise TuningError(f"{path}: its recorded vehicle gives no ukf params: {err}") from None
+    text = params_yaml(BACKEND, str(params.get("name", path.name)), params, "ukf_tuning")
+    return text, limit
+
+
 def replay(run: ReplayRun, values: Mapping[str, object]) -> np.ndarray:
-    """β̂ [rad] per sample of ``run`` from the ukf back-end with ``values`` (NaN: none)."""
-    est = Estimator(
-        create_backend(UkfBackend.name, values, WINDOW_STEPS),
-        EstimatorParams(window_steps=WINDOW_STEPS),
-    )
-    return replay_samples(est, run.columns).beta_rad
+    """β̂ [rad] per sample of ``run`` from the ukf back-end with ``values`` (NaN: none);
+    a run with its own car is replayed with that car's params and steering limit."""
+    if run.car_params is None:
+        backend = create_backend(UkfBackend.name, values, WINDOW_STEPS)
+        params = EstimatorParams(window_steps=WINDOW_STEPS)
+    else:
+        from sideslip_estimator.inputs import InputLimits
+
+        # The back-end reads its car from a file: one per call, gone once it is built.
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "car.ukf.yaml"
+            path.write_text(run.car_params, encoding="utf-8")
+            backend = create_backend(
+                UkfBackend.name, {**values, "params_file": str(path)}, WINDOW_STEPS
+            )
+        limits = InputLimits(stl_m=run.stl_limit_m) if run.stl_limit_m else InputLimits()
+        params = EstimatorParams(window_steps=WINDOW_STEPS, limits=limits)
+    return replay_samples(Estimator(backend, params), run.columns).beta_rad
 
 
 def beta_rmse_deg(runs: Sequence[ReplayRun], values: Mapping[str, object]) -> float:
@@ -186,7 +234,11 @@ def tune(
     """
     if not runs:
         raise TuningError("no training runs")
-    fixed_values = {"params_file": params_file, **(fixed or {})}
+    if params_file == RECORDED and any(r.car_params is None for r in runs):
+        raise TuningError(f"--params-file {RECORDED}: runs without their car's params")
+    # With each run's own car, the shipped default car only checks the settings here.
+    checked = "paper_sedan" if params_file == RECORDED else params_file
+    fixed_values = {"params_file": checked, **(fixed or {})}
     try:  # refuse bad settings before any replay
         create_backend(UkfBackend.name, fixed_values, WINDOW_STEPS)
     except BackendError as err:
@@ -232,7 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--params-file",
         default="paper_sedan",
-        help="ukf params_file: shipped name or YAML path (default paper_sedan)",
+        help="ukf params_file: shipped name or YAML path (default paper_sedan), or "
+        f"'{RECORDED}': each bag's own recorded car (e.g. fleet training bags)",
     )
     p.add_argument("--swarm", type=int, default=8, help="PSO particles (default 8)")
     p.add_argument("--iterations", type=int, default=4, help="PSO iterations (default 4)")
@@ -261,7 +314,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ukf_tuning: error: {args.out} exists (use --force)", file=sys.stderr)
         return 2
     try:
-        runs = load_replay_runs(args.data)
+        runs = load_replay_runs(args.data, recorded=args.params_file == RECORDED)
         settings = PsoSettings(iterations=args.iterations, swarm_size=args.swarm, seed=args.seed)
         bar = tqdm(total=args.iterations + 1, unit="swarm", desc="ukf tuning", file=sys.stderr)
 
