@@ -18,9 +18,12 @@ TUNED_PARAMETERS: Final = (
     "process_sigma_friction_per_sqrt_s",
 )
 """The parameters tuned on training data (``python -m sideslip_training.ukf_tuning``,
-PSO over their log10). The defaults: two rounds on 54 training bags (every 4th
-paper-train run and 24 randomized runs, seed 101, paper_sedan, paper noise), round 2
-centred on round 1; training β RMSE 0.075° → 0.058°."""
+PSO over their log10). The defaults (since 2026-12-03): one round, 10 particles × 6
+swarms, on 47 fleet training bags of 12 cars (``sideslip-generate --preset fleet --count
+48 --seed 1``, the one spun run left out, paper noise), each bag with its own car's
+effective-axle params (``--params-file recorded``), centred on the earlier defaults
+(tuned on ``paper_sedan`` bags with tyre-only axles); training β RMSE 0.141° → 0.055°.
+Chosen on validation bags (docs/training.md, "The UKF's noise on the fleet")."""
 
 UKF_PARAMETERS: Final = (
     ParameterSpec(
@@ -31,32 +34,32 @@ UKF_PARAMETERS: Final = (
     ),
     ParameterSpec(
         "yaw_rate_sigma_radps",
-        0.0029,
+        0.002722,
         "Measurement 1-σ of the yaw rate [rad/s] (tuned; the paper's sensor: 0.0035).",
     ),
     ParameterSpec(
         "lateral_acceleration_sigma_mps2",
-        0.96,
+        0.3463,
         "Measurement 1-σ of a_y [m/s²]: sensor noise plus the model's error (tuned).",
     ),
     ParameterSpec(
         "longitudinal_velocity_sigma_mps",
-        0.56,
+        0.9826,
         "Measurement 1-σ of X_v [m/s] (tuned; the paper's sensor: 0.28).",
     ),
     ParameterSpec(
         "process_sigma_longitudinal_mps2",
-        0.17,
+        0.2585,
         "Process noise on v̇_x [m/s² per √Hz]: X_a noise and bias (tuned).",
     ),
     ParameterSpec(
         "process_sigma_lateral_mps2",
-        0.018,
+        0.01594,
         "Process noise on v̇_y [m/s² per √Hz]: how far the tyres may leave the model (tuned).",
     ),
     ParameterSpec(
         "process_sigma_yaw_radps2",
-        0.072,
+        0.3837,
         "Process noise on ψ̈ [rad/s² per √Hz] (tuned).",
     ),
     ParameterSpec(
@@ -67,7 +70,7 @@ UKF_PARAMETERS: Final = (
     ),
     ParameterSpec(
         "process_sigma_slip_rad_per_sqrt_s",
-        0.012,
+        0.05733,
         "Process noise on the relaxed slip angles [rad/√s] (with tyre_relaxation; tuned).",
     ),
     ParameterSpec(
@@ -87,7 +90,7 @@ UKF_PARAMETERS: Final = (
     ),
     ParameterSpec(
         "process_sigma_friction_per_sqrt_s",
-        0.28,
+        0.1583,
         "Random walk of road μ [1/√s] (with estimate_friction; tuned).",
     ),
     ParameterSpec(
