@@ -25,6 +25,8 @@ from sideslip_sim.sensors import add_noise, exact_samples, noise_profile
 from sideslip_sim.simulate import simulate
 from sideslip_sim.vehicle import load_vehicle
 
+DEFAULTS = {p.name: p.default for p in UkfBackend.parameters}
+
 STEP_NS = 2_500_000
 DT_S = 2.5e-3
 COL = {name: i for i, name in enumerate(CHANNELS)}
@@ -159,13 +161,18 @@ def _beta_through_estimator(samples: SampleArrays, backend: str, values: dict) -
 # 6-s runs on paper_sedan with the paper's sensor noise (seeded), into the tyres' nonlinear
 # range: a sine steer on a dry road at 0.85 of the μ-limited a_y (6 m/s², β up to 2°),
 # and a step steer on μ = 0.4 (which the UKF is not told) at 0.8 of it. Measured MAE after
-# 1 s [deg], ukf / single_track: dry 0.036 / 0.242, low μ 0.033 / 0.283. The bounds: about
-# twice the UKF's error, and at most 0.3 of the linear observer's.
+# 1 s [deg], ukf / single_track, with the noise defaults tuned on the fleet (2026-12-03):
+# dry 0.018 / 0.242, low μ 0.104 / 0.283 (with the earlier defaults, tuned on paper_sedan:
+# 0.037 and 0.047). This one unannounced low-μ step steer on paper_sedan got worse; on the
+# μ 0.4 step steers of 16 validation-fleet cars the tuned defaults are better (0.062° →
+# 0.056°; docs/training.md, "The UKF's noise on the fleet"). The bounds: about twice the
+# UKF's error, and well under the linear observer's.
 FULL_MODEL_RUNS = {
     "dry": Maneuver("ukf_dry", "sine_steer", 6.0, 80.0, 300.0, ay_fraction=0.85),
     "low_mu": Maneuver("ukf_low_mu", "step_steer", 6.0, 70.0, 150.0, mu=0.4, ay_fraction=0.8),
 }
-MAX_MAE_DEG = 0.07
+MAX_MAE_DEG = {"dry": 0.04, "low_mu": 0.2}
+MAX_SHARE_OF_LINEAR = {"dry": 0.2, "low_mu": 0.5}
 
 
 @pytest.mark.parametrize("run", sorted(FULL_MODEL_RUNS))
@@ -179,9 +186,9 @@ def test_ukf_beats_the_linear_observer_on_the_full_model_in_the_nonlinear_range(
         beta = _beta_through_estimator(samples, backend, {})
         assert np.all(np.isfinite(beta[99:]))
         mae[backend] = float(np.mean(np.abs(np.degrees(beta - truth)[settled])))
-    assert np.max(np.abs(np.degrees(truth))) > 5 * MAX_MAE_DEG  # the test discriminates
-    assert mae["ukf"] <= MAX_MAE_DEG
-    assert mae["ukf"] <= 0.3 * mae["single_track"]
+    assert np.max(np.abs(np.degrees(truth))) > 0.5  # large enough for the bounds to mean much
+    assert mae["ukf"] <= MAX_MAE_DEG[run]
+    assert mae["ukf"] <= MAX_SHARE_OF_LINEAR[run] * mae["single_track"]
 
 
 # --- parameter files --------------------------------------------------------------------
@@ -409,19 +416,20 @@ def test_dropped_samples_are_integrated_in_substeps() -> None:
     assert half.beta_rad == pytest.approx(full.beta_rad, abs=math.radians(0.02))
 
 
-@pytest.mark.parametrize(("memory_s", "bound"), [(0.5, (0.1, 0.2)), (1e6, (0.5, 1.0))])
-def test_friction_uncertainty_stays_bounded_where_nothing_observes_it(
-    memory_s: float, bound: tuple[float, float]
-) -> None:
-    # 4 s straight ahead: μ unobservable. Its 1-σ tends to q·√(memory/2) = 0.14 with a
-    # 0.5-s memory; without memory (a pure random walk) it grows as √(0.3² + q² t) = 0.63.
+@pytest.mark.parametrize("memory_s", [0.5, 1e6])
+def test_friction_uncertainty_stays_bounded_where_nothing_observes_it(memory_s: float) -> None:
+    # 4 s straight ahead: μ unobservable. Its 1-σ tends to q·√(memory/2) with a 0.5-s
+    # memory (0.079 with the default q 0.158); without memory (a pure random walk) it grows
+    # as √(σ₀² + q² t) (0.44).
+    q = float(DEFAULTS["process_sigma_friction_per_sqrt_s"])
+    sigma0 = float(DEFAULTS["friction_initial_sigma"])
+    expected = q * math.sqrt(memory_s / 2.0) if memory_s < 10 else math.hypot(sigma0, q * 2.0)
     rows, stamps = _random_drive(6, 1600)
     rows[:, [COL["yaw_rate_radps"], COL["y_a_mps2"], COL["stl_m"]]] = 0.0
     backend = create_backend("ukf", {"friction_memory_s": memory_s}, 100)
     for k in range(len(rows)):
         backend.update(rows[k : k + 1], stamps[k : k + 1])
-    low, high = bound
-    assert low <= backend.state_sigma["road_friction"] <= high
+    assert backend.state_sigma["road_friction"] == pytest.approx(expected, rel=0.3)
 
 
 def test_variance_comes_from_the_covariance_of_v_y_over_v_x_squared() -> None:

@@ -51,12 +51,14 @@ def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(
     """On the recordings' test part (never used to identify or train): compact_rwd's
     tyres are far from the fleet's typical ones its description implies, so the
     identified file must beat the described one clearly; the fine-tuned model must not
-    be worse than the shipped one given the same file."""
+    be worse than the shipped one given the same file. (Whether the shipped network
+    beats the UKF is no longer asserted: with the noise settings tuned on the fleet the
+    UKF alone is the better on most cars; docs/training.md, "The UKF's noise on the
+    fleet".)"""
     _, out = fitted
     mae, models = _pooled(out)
     assert mae["UKF (identified axles)"] < 0.6 * mae["UKF (described axles)"]
     assert mae[models["fitted"]] <= mae[models["shipped"]]
-    assert mae[models["shipped"]] < mae["UKF (identified axles)"]
 
 
 def test_the_fitted_model_publishes_a_calibrated_sigma_and_the_card_says_how_it_held(fitted):
