@@ -25,13 +25,13 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from sideslip_msgs_py.uncertainty import Z_95
+from sideslip_training.calibrate import scale_of_ratios
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import evaluate_runs
 from sideslip_training.export import load_model
@@ -64,12 +64,6 @@ def in_band(x: float) -> bool:
     return BAND[0] <= x <= BAND[1]
 
 
-def conformal_scale(ratios: np.ndarray) -> float:
-    """The factor on σ that puts 95 % of ``ratios`` inside ±1.96 σ (split conformal)."""
-    s = np.sort(ratios)
-    return float(s[min(s.size - 1, math.ceil((s.size + 1) * 0.95) - 1)] / Z_95)
-
-
 def cell_figures(runs: list[np.ndarray], rng: np.random.Generator) -> dict[str, float]:
     inside = [np.count_nonzero(r <= Z_95) for r in runs]
     sizes = [r.size for r in runs]
@@ -78,7 +72,7 @@ def cell_figures(runs: list[np.ndarray], rng: np.random.Generator) -> dict[str, 
     boot = np.array([sum(inside[i] for i in d) / sum(sizes[i] for i in d) for d in draws])
     oracle = []
     for fit in itertools.combinations(range(len(runs)), len(runs) // 2):
-        scale = conformal_scale(np.concatenate([runs[i] for i in fit]))
+        scale = scale_of_ratios(np.concatenate([runs[i] for i in fit]), 0.95)
         rest = [i for i in range(len(runs)) if i not in fit]
         scored = np.concatenate([runs[i] for i in rest])
         oracle.append(float(np.mean(scored <= Z_95 * scale)))

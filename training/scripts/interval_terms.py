@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -25,6 +24,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from sideslip_msgs_py.uncertainty import Uncertainty
+from sideslip_training.calibrate import scale_of_ratios
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import predict_run
 from sideslip_training.export import load_model
@@ -199,8 +199,7 @@ def score_other_cars(
     for name, keys in sets.items():
         t = np.stack([d[k] for k in keys], axis=1)
         c = fit(t[fit_rows], d["err"][fit_rows] ** 2)
-        ratio = np.sort(np.abs(d["err"][scale_rows]) / np.sqrt(t[scale_rows] @ c))
-        scale = ratio[min(ratio.size - 1, math.ceil((ratio.size + 1) * 0.95) - 1)] / Z
+        scale = scale_of_ratios(np.abs(d["err"][scale_rows]) / np.sqrt(t[scale_rows] @ c), 0.95)
         sigma = scale * np.sqrt(np.stack([e[k] for k in keys], axis=1) @ c)
         inside = np.abs(e["err"]) <= Z * sigma
         n, total, per_mu = cells_in_band(inside, e)
@@ -242,8 +241,7 @@ def main(argv: list[str] | None = None) -> int:
             held = ~np.isin(runs, folds[k])
             fit_rows, scale_rows = np.isin(runs, folds[k][::2]), np.isin(runs, folds[k][1::2])
             sigma = np.sqrt(t @ fit(t[fit_rows], d["err"][fit_rows] ** 2))
-            ratio = np.sort(np.abs(d["err"][scale_rows]) / sigma[scale_rows])
-            scale = ratio[min(ratio.size - 1, math.ceil((ratio.size + 1) * 0.95) - 1)] / Z
+            scale = scale_of_ratios(np.abs(d["err"][scale_rows]) / sigma[scale_rows], 0.95)
             inside[held] = np.abs(d["err"][held]) <= Z * scale * sigma[held]
         thirds = [inside[(d["mu"] >= lo) & (d["mu"] < hi)].mean() for lo, hi in MU_THIRDS]
         per_car = np.array([inside[d["car"] == c].mean() for c in np.unique(d["car"])])

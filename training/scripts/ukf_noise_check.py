@@ -72,14 +72,13 @@ def main(argv: list[str] | None = None) -> int:
                 acc[1] += e.size
             for car, (total, n) in sums.items():
                 per_car.setdefault(car, {})[spec] = total / n
-            report[spec] = {
+            figures = {
                 "mae_deg": float(np.abs(pooled).mean()),
                 "rmse_deg": float(math.sqrt(np.mean(pooled**2))),
                 "samples": int(pooled.size),
             }
-            print(
-                f"{spec}: MAE {report[spec]['mae_deg']:.4f}°, RMSE {report[spec]['rmse_deg']:.4f}°"
-            )  # type: ignore[index]
+            report[spec] = figures
+            print(f"{spec}: MAE {figures['mae_deg']:.4f}°, RMSE {figures['rmse_deg']:.4f}°")
     if len(args.values) == 2:
         a, b = args.values
         better = sum(v[b] < v[a] for v in per_car.values())

@@ -136,7 +136,13 @@ def conformal_scale(errors: Errors, coefficients: Sequence[float], coverage: flo
     """The scale s such that |err| ≤ z·s·σ for the (finite-sample corrected) share
     ``coverage`` of the samples."""
     sigma = np.sqrt(terms(errors.v, errors.ay, errors.r) @ np.asarray(coefficients))
-    ratio = np.sort(np.abs(errors.err) / sigma)
+    return scale_of_ratios(np.abs(errors.err) / sigma, coverage)
+
+
+def scale_of_ratios(ratios: FloatArray, coverage: float) -> float:
+    """The scale s such that ratio ≤ z·s for the (finite-sample corrected) share
+    ``coverage`` of ``ratios`` (|err| / σ per sample): split conformal."""
+    ratio = np.sort(ratios)
     n = ratio.size
     k = min(n - 1, math.ceil((n + 1) * coverage) - 1)
     return float(ratio[k]) / z_of(coverage)
