@@ -128,6 +128,8 @@ def test_separate_recordings_are_scored_whole_beside_the_test_part(
     assert "Result on the separate recordings" in card
     assert f"| {models['fitted']} | {rows[models['fitted']]['mae']:.4f} |" in card
     assert f"--test-bags {foreign_new_drives}" in card
+    # A measurable fit (axles identified) says its own test part flatters it.
+    assert "compare both on a recording the fit never saw" in card
 
 
 def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
