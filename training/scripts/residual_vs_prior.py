@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path)
     args = p.parse_args(argv)
 
-    report: dict[str, object] = {"data": args.data, "models": {}}
+    models: dict[str, object] = {}
     for spec_name in args.model:
         net, meta = load_model(resolve(spec_name))
         if meta.prior == "none":
@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
                 float(np.max(ratios)),
             ],
         }
-        report["models"][spec_name] = {  # type: ignore[index]
+        models[spec_name] = {
             "prior": meta.prior,
             "summary": summary,
             "per_car": per_car,
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
             + " / ".join(f"{r:.2f}" for r in summary["car_ratio_min_median_max"])
         )
     if args.out is not None:
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
+        args.out.write_text(json.dumps({"data": args.data, "models": models}, indent=2) + "\n")
     return 0
 
 
