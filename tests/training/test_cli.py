@@ -481,6 +481,52 @@ def test_a_fine_tuning_that_never_beats_its_start_keeps_the_start_and_says_so(
     assert metrics["kept_start_weights"] is True and metrics["best_epoch"] == 0
 
 
+def test_interpolate_exports_the_weights_that_share_of_the_way_from_the_start(
+    sim_bag_dir, tmp_path
+):
+    base = tmp_path / "base.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(base), *TINY]) == 0
+    tune = ["--data", str(sim_bag_dir), "--init", str(base), *TINY]
+    full, half = tmp_path / "full.safetensors", tmp_path / "half.safetensors"
+    assert train_main([*tune, "--out", str(full)]) == 0
+    assert json.loads((tmp_path / "full.run" / "metrics.json").read_text())["best_epoch"] > 0
+    assert train_main([*tune, "--interpolate", "0.5", "--out", str(half)]) == 0
+    start, tuned, mixed = (read_artifact(p)[0] for p in (base, full, half))
+    for name, t0 in start.items():
+        expected = t0 + np.float32(0.5) * (tuned[name] - t0)
+        np.testing.assert_allclose(mixed[name], expected, atol=1e-6, err_msg=name)
+        assert not np.allclose(tuned[name], t0), name  # the fine-tuning moved every tensor
+    metrics = json.loads((tmp_path / "half.run" / "metrics.json").read_text())
+    assert metrics["interpolate"] == 0.5
+    assert metrics["fine_tuned_val_mae_deg"] > 0 and metrics["val_mae_deg"] > 0
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [
+        (["--model", "lstm"], "there is no --init"),
+        (["--normalization", "refit"], "needs --normalization keep"),
+        (["--interpolate", "0"], "--interpolate must be within (0, 1], got 0.0"),
+    ],
+)
+def test_interpolate_without_a_comparable_start_is_refused_in_one_line(
+    sim_bag_dir, tmp_path, capsys, extra, named
+):
+    base = tmp_path / "base.safetensors"
+    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--hidden-units", "6"]
+    assert train_main([*args, "--out", str(base), *TINY]) == 0
+    capsys.readouterr()
+    out = tmp_path / "t.safetensors"
+    init = [] if extra[0] == "--model" else ["--init", str(base)]
+    alpha = [] if "--interpolate" in extra else ["--interpolate", "0.5"]
+    argv = ["--data", str(sim_bag_dir), *init, *alpha, *extra, "--out", str(out), *TINY]
+    assert train_main(argv) == 2
+    err = capsys.readouterr().err
+    assert named in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("extra", "named"),
     [

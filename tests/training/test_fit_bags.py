@@ -45,6 +45,10 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
         assert text in card
     # The kinematic baselines read the reference velocity: not a sensor of this car.
     assert "Kinematic" not in card
+    # Half way back to the start model's weights by default (what that does to the
+    # weights: test_cli's interpolation test; these 2 epochs keep the start's).
+    config = json.loads((out.with_suffix(".fit") / "train-run" / "config.json").read_text())
+    assert config["args"]["interpolate"] == 0.5
 
 
 def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(fitted):
@@ -164,6 +168,7 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
         (["--test-fraction", "1.5"], "--test-fraction must be in (0, 1)"),
         (["--cars", "4"], "--cars is for simulated fits"),
         (["--rehearse", "-1"], "--rehearse must be >= 0 runs"),
+        (["--interpolate", "1.5"], "--interpolate must be within (0, 1], got 1.5"),
         (["--test-bags", "{folder}"], "must be other drives than the fit's"),
         (["--test-bags", "{folder}/drive03"], "must be other drives than the fit's"),
         (["--test-bags", "{link}"], "must be other drives than the fit's"),
@@ -203,7 +208,12 @@ def _short_recording(dest):
 
 @pytest.mark.parametrize(
     ("option", "value"),
-    [("--topic-map", "map.yaml"), ("--test-bags", "map.yaml"), ("--rehearse", "8")],
+    [
+        ("--topic-map", "map.yaml"),
+        ("--test-bags", "map.yaml"),
+        ("--rehearse", "8"),
+        ("--interpolate", "0.5"),
+    ],
 )
 def test_recording_options_without_bags_are_refused(
     compact_rwd_description, tmp_path, capsys, option, value

@@ -18,6 +18,9 @@ units, ``measurable_observer_signals``, ``--prior ukf``). ``--train-args`` are a
 both trainings (e.g. ``--stride 10 --mirror no`` for a quicker comparison than the
 small-data defaults).
 
+``--finetune-args`` are added to the fine-tuning only (``--interpolate 0.5``, as
+``sideslip-fit --bags`` fine-tunes).
+
 ``--eval-args`` are added to the scoring (the car files a user's node would run, when
 ``--train-args`` gave the trainings such files; ``--tag`` keeps that run's folder apart).
 
@@ -105,6 +108,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--base", choices=sorted(BASES), default="paper", help="which shipped model")
     p.add_argument("--train-args", default="", help="more sideslip-train options for both")
     p.add_argument(
+        "--finetune-args",
+        default="",
+        help="more sideslip-train options for the fine-tuning only (e.g. --interpolate 0.5)",
+    )
+    p.add_argument(
         "--eval-args",
         default="",
         help="more sideslip-evaluate options (e.g. the car files the trainings were given: "
@@ -134,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
         names = first_minutes(runs, minutes)
         subset = [str(data / n) for n in names]
         models = {}
-        for kind, extra in (("finetuned", ["--init", shipped]), ("scratch", scratch_model)):
+        fine_tune = ["--init", shipped, *args.finetune_args.split()]
+        for kind, extra in (("finetuned", fine_tune), ("scratch", scratch_model)):
             out = work / f"{kind}_{minutes:g}min.safetensors"
             if not out.exists():
                 code = train_main(

@@ -35,6 +35,7 @@ from .train_intervals import calibrate_selection, interval_mode
 from .train_metrics import pooled_test_metrics, val_metrics
 from .train_plan import TrainPlan, plan_training, run_config
 from .trainer import EpochRecord, TrainResult, train_model
+from .weight_interpolation import interpolate_toward
 
 
 class _Stop(Exception):
@@ -69,6 +70,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         return _error(err, EXIT_BAD_INPUT)
     try:
         result, pso_info = _train(args, plan, log)
+        fine_tuned_val_mae = result.best_val_mae_deg
+        _toward_start(result, plan, args.interpolate, log)
 
         def metadata(result: TrainResult, metrics: dict[str, Any]) -> ModelMetadata:
             return model_metadata(
@@ -90,6 +93,9 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         result, metrics = _validate_and_refit(args, plan, config["split"], result, log)
         if calibration is not None:
             metrics["interval_calibration"] = calibration
+        if args.interpolate < 1.0 and result.best_epoch > 0:
+            metrics["interpolate"] = args.interpolate
+            metrics["fine_tuned_val_mae_deg"] = fine_tuned_val_mae
         meta = replace(metadata(result, metrics), uncertainty=uncertainty)
         _export(args.out, result, meta)
     except _Stop as stop:
@@ -187,11 +193,24 @@ def _validate_and_refit(
     elif wants_refit(args.refit, pso=args.pso, val_given=bool(args.val), split=split):
         # The epoch count chosen on validation, now on all the data before the test part.
         result, refit_history = refit(result, plan, log, init_state=plan.init_state())
+        _toward_start(result, plan, args.interpolate, log)
         metrics["refit_epochs"] = len(refit_history)
         (plan.run_dir / "refit_history.json").write_text(
             json.dumps([asdict(r) for r in refit_history], indent=2) + "\n"
         )
     return result, metrics
+
+
+def _toward_start(
+    result: TrainResult, plan: TrainPlan, alpha: float, log: Callable[[str], None]
+) -> None:
+    """``--interpolate``: the fine-tuned weights moved back toward ``--init``'s (in
+    place); nothing when the start's weights were kept or ``alpha`` is 1."""
+    state = plan.init_state()
+    if state is None or alpha >= 1.0 or result.best_epoch == 0:
+        return
+    interpolate_toward(result.model, state, alpha)
+    log(f"weights: the start's + {alpha:g} x (fine-tuned - start's) (--interpolate)")
 
 
 def _export(out: Path, result: TrainResult, meta: ModelMetadata) -> None:

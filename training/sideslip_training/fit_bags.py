@@ -37,6 +37,7 @@ from typing import Any, Final
 
 from .cli_errors import CliError
 from .fit_bags_card import Scored, gentle_recordings, model_card, narrow_interval
+from .weight_interpolation import check_alpha
 
 IDENTIFIED_UKF: Final = "UKF (identified axles)"
 DESCRIBED_UKF: Final = "UKF (described axles)"
@@ -45,6 +46,10 @@ DEFAULT_TEST_FRACTION: Final = 0.3
 DEFAULT_REHEARSAL_RUNS: Final = 0
 """Simulated runs of cars like the described one trained beside the recordings
 (``--rehearse``)."""
+DEFAULT_INTERPOLATION: Final = 0.5
+"""The fitted weights kept half way from the start model's (``sideslip-train
+--interpolate``): chosen on validation cars' other drives (docs/evaluation/fit-bags,
+"Half way back to the start")."""
 REHEARSAL_SEED: Final = 50_000
 """Added to ``--seed`` for the rehearsal's cars and runs: other cars than a description
 fit's (``sideslip-fit`` without ``--bags``) with the same seed."""
@@ -112,6 +117,16 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         "of driving each; docs/evaluation/fit-bags, 'Rehearsal')",
     )
     p.add_argument(
+        "--interpolate",
+        type=float,
+        metavar="ALPHA",
+        default=None,
+        help="with --bags: keep the start model's weights moved this share of the way to "
+        f"the fine-tuned ones (default {DEFAULT_INTERPOLATION:g}: better on other drives "
+        "than the plain fine-tuning (1) and the start (0) on validation cars; "
+        "docs/evaluation/fit-bags)",
+    )
+    p.add_argument(
         "--test-bags",
         nargs="+",
         metavar="BAG",
@@ -124,7 +139,7 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
 def check_bag_arguments(args: argparse.Namespace) -> float:
     """Refuse options that do not go together; the test fraction to use."""
     if args.bags is None:
-        for name in ("topic_map", "test_fraction", "test_bags", "rehearse"):
+        for name in ("topic_map", "test_fraction", "test_bags", "rehearse", "interpolate"):
             if getattr(args, name) is not None:
                 raise CliError(f"--{name.replace('_', '-')} needs --bags")
         return 0.0
@@ -133,6 +148,11 @@ def check_bag_arguments(args: argparse.Namespace) -> float:
             raise CliError(f"--{name.replace('_', '-')} is for simulated fits, not with --bags")
     if args.rehearse is not None and args.rehearse < 0:
         raise CliError(f"--rehearse must be >= 0 runs, got {args.rehearse}")
+    if args.interpolate is not None:
+        try:
+            check_alpha(args.interpolate)
+        except ValueError as err:
+            raise CliError(str(err)) from None
     fraction = DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction
     if not (0.0 < fraction < 1.0 and math.isfinite(fraction)):
         raise CliError(f"--test-fraction must be in (0, 1), got {args.test_fraction}")
@@ -188,6 +208,11 @@ def identify(head: Sequence[Any], vehicle: Path, ukf_file: Path, log: Callable) 
         f"-> {ukf_file}"
     )
     return found
+
+
+def interpolation(args: argparse.Namespace) -> float:
+    """``--interpolate``'s share, or the default."""
+    return DEFAULT_INTERPOLATION if args.interpolate is None else float(args.interpolate)
 
 
 def rehearsal_runs(args: argparse.Namespace) -> int:
@@ -386,6 +411,7 @@ def run(
         train += ["--topic-map", str(args.topic_map)] if args.topic_map else []
         train += ["--max-epochs", str(args.max_epochs)] if args.max_epochs else []
         train += ["--learning-rate", repr(args.learning_rate)] if args.learning_rate else []
+        train += ["--interpolate", repr(interpolation(args))]
         train += ["--quiet"] if args.quiet else []
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
@@ -452,6 +478,11 @@ def run(
         if rehearsal_runs(args)
         else ""
     )
+    if interpolation(args) < 1.0 and not train_metrics.get("kept_start_weights"):
+        summary_text += (
+            f"; the weights kept {interpolation(args):g} of the way from the start model's "
+            "to the fine-tuned ones (`--interpolate`)"
+        )
     card = model_card(args, summary_text, fraction, found, test_part, new_drives,
                       train_metrics, time.perf_counter() - started, uncertainty)  # fmt: skip
     args.out.with_suffix(".md").write_text(card)

@@ -132,6 +132,16 @@ def train_parser() -> argparse.ArgumentParser:
         help="with --init: keep the model's z-score statistics (default; the first epoch "
         "starts from the model's answer) or refit them on the new data",
     )
+    p.add_argument(
+        "--interpolate",
+        type=float,
+        default=1.0,
+        metavar="ALPHA",
+        help="with --init: export the start model's weights moved this share of the way "
+        "to the fine-tuned ones, θ0 + ALPHA (θ - θ0), before the σ calibration (default 1: "
+        "the fine-tuned weights; sideslip-fit --bags uses 0.5, chosen on validation cars: "
+        "docs/evaluation/fit-bags); needs --normalization keep",
+    )
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
     p.add_argument(
         "--features",

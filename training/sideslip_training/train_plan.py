@@ -36,6 +36,7 @@ from .training_data import (
     sample_period_s,
     window_steps,
 )
+from .weight_interpolation import check_alpha
 
 
 @dataclass(frozen=True)
@@ -178,6 +179,12 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         ]
         if missing:
             raise CliError(f"--car given: the model's inputs need {' and '.join(missing)}")
+    check_alpha(args.interpolate)
+    if args.interpolate < 1.0 and (init is None or args.normalization != "keep"):
+        raise CliError(
+            f"--interpolate {args.interpolate:g} moves fine-tuned weights toward --init's: "
+            + ("there is no --init" if init is None else "needs --normalization keep")
+        )
     keep = init.normalizer if init is not None and args.normalization == "keep" else None
     choice = DataChoice(
         data=args.data,
