@@ -127,7 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     data = work / "data"
     runs = car_runs(args.car, max(args.minutes), args.seed)
     runs = runs[: len(first_minutes(runs, max(args.minutes)))]
-    if not (data / "index.json").exists():
+    # A later call with more minutes needs more runs than an earlier one generated; the
+    # seeded sequence is the same, so the earlier runs come back unchanged.
+    if not all((data / r.maneuver.name).exists() for r in runs):
         prepare_output(data, force=True)
         generate(runs, data, seed=args.seed, preset_name="held-out-own (yardstick only)",
                  jobs=2, progress=False)  # fmt: skip
@@ -170,7 +172,11 @@ def main(argv: list[str] | None = None) -> int:
             "zero_shot": by_stem[shipped],
         }
         print(f"{args.car} {minutes:g} min: {curve[f'{minutes:g}']}", file=sys.stderr)
-    (work / "curve.json").write_text(json.dumps(curve, indent=2) + "\n")
+    done = work / "curve.json"
+    # Calls for other amounts of the same work folder add to the curve, not replace it.
+    curve = {**(json.loads(done.read_text()) if done.exists() else {}), **curve}
+    curve = dict(sorted(curve.items(), key=lambda item: float(item[0])))
+    done.write_text(json.dumps(curve, indent=2) + "\n")
     lines = ["| minutes | runs | fine-tuned | scratch | zero-shot | fine-tuned vs scratch |",
              "|---|---|---|---|---|---|"]  # fmt: skip
     for m, c in curve.items():
