@@ -1,5 +1,5 @@
-"""The model card of sideslip-fit --bags: the separate recordings' table and its warning
-when the fitted model's σ is too narrow for them."""
+"""The model card of sideslip-fit --bags: the separate recordings' table, its warning
+when the fitted model's σ is too narrow for them and its note when σ is too wide."""
 
 from __future__ import annotations
 
@@ -14,10 +14,12 @@ from sideslip_training.evaluate import Metrics
 from sideslip_training.fit_bags_card import (
     GENTLE_MPS2,
     NARROW_SHARE,
+    WIDE_SHARE,
     Scored,
     gentle_recordings,
     model_card,
     narrow_interval,
+    wide_interval,
 )
 
 FITTED, SHIPPED = "LSTM (my_car)", "LSTM (fleet_ukf_measurable)"
@@ -50,12 +52,21 @@ def test_a_narrow_sigma_on_the_separate_recordings_is_named_on_the_card(share):
     assert "--test-bags other/" in card
 
 
-@pytest.mark.parametrize("share", [NARROW_SHARE, 0.95, 1.0])
+@pytest.mark.parametrize("share", [NARROW_SHARE, 0.95, WIDE_SHARE - 1e-6])
 def test_a_sigma_that_holds_gets_no_warning(share):
-    assert narrow_interval(_scored(share)) is None
+    assert narrow_interval(_scored(share)) is None and wide_interval(_scored(share)) is None
     card = _card(_scored(share))
     assert "Result on the separate recordings" in card and "**Only" not in card
+    assert "wider than a 95 % interval needs" not in card
     assert f"| {FITTED} | 0.0500 | 0.0700 | 0.990 | {share:.1%} | 4000 |" in card
+
+
+@pytest.mark.parametrize("share", [WIDE_SHARE, 0.999, 1.0])
+def test_a_wide_sigma_on_the_separate_recordings_is_noted_on_the_card(share):
+    assert wide_interval(_scored(share)) == share and narrow_interval(_scored(share)) is None
+    card = _card(_scored(share))
+    assert f"{share:.1%} of these samples lie inside the fitted model's ±1.96 σ: on " in card
+    assert "wider than a 95 % interval needs" in card and "**Only" not in card
 
 
 def test_without_separate_recordings_the_card_asks_for_one():

@@ -41,7 +41,8 @@ from typing import Any, Final
 
 from .car_description import Description
 from .cli_errors import EXIT_BAD_INPUT, CliError
-from .fit_bags import BAG_RECIPES, add_bag_arguments, check_bag_arguments, stage
+from .fit_bags import stage
+from .fit_bags_args import BAG_RECIPES, add_bag_arguments, check_bag_arguments
 
 SHIPPED_PAPER: Final = "fleet_lstm_paper"
 SHIPPED_MEASURABLE: Final = "fleet_ukf_measurable"

@@ -24,148 +24,33 @@ recordings" does in two:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 from .cli_errors import CliError
-from .fit_bags_card import Scored, gentle_recordings, model_card, narrow_interval
-from .weight_interpolation import check_alpha
+from .fit_bags_args import BAG_RECIPES, interpolation, rehearsal_runs
+from .fit_bags_card import (
+    gentle_recordings,
+    model_card,
+    narrow_interval,
+    wide_interval,
+)
+from .fit_bags_scoring import (
+    load_recordings,
+    pooled_json,
+    scored_table,
+    scored_traces,
+)
 
-IDENTIFIED_UKF: Final = "UKF (identified axles)"
-DESCRIBED_UKF: Final = "UKF (described axles)"
-DEFAULT_TEST_FRACTION: Final = 0.3
-"""The share of every recording kept for the test (the issue's 70/30 split in time)."""
-DEFAULT_REHEARSAL_RUNS: Final = 0
-"""Simulated runs of cars like the described one trained beside the recordings
-(``--rehearse``)."""
-DEFAULT_INTERPOLATION: Final = 0.5
-"""The fitted weights kept half way from the start model's (``sideslip-train
---interpolate``): chosen on validation cars' other drives (docs/evaluation/fit-bags,
-"Half way back to the start")."""
 REHEARSAL_SEED: Final = 50_000
 """Added to ``--seed`` for the rehearsal's cars and runs: other cars than a description
 fit's (``sideslip-fit`` without ``--bags``) with the same seed."""
-
-
-@dataclass(frozen=True)
-class BagRecipe:
-    """How ``sideslip-train`` fine-tunes on the recordings."""
-
-    train_args: tuple[str, ...]
-    summary: str
-
-
-BAG_RECIPES: Final = {
-    # Measured on the six held-out cars with 5 minutes each (docs/evaluation/
-    # held-out-curve, "the user's path"): ~1.5 min per training on 2 cores, 34 % better
-    # than the same recipe from scratch on average, never worse than the shipped model.
-    "quick": BagRecipe(
-        ("--profile", "quick", "--stride", "10", "--mirror", "no"),
-        "sideslip-train --profile quick --stride 10 --mirror no",
-    ),
-    # sideslip-train's small-data defaults (every window, runs mirrored left-right below
-    # 1 M samples): 20 times the windows; on one validation car 1977 s against 266 s,
-    # test-part MAE 0.0192 against 0.0244 (docs/evaluation/fit-bags).
-    "thorough": BagRecipe(
-        ("--profile", "quick"),
-        "sideslip-train --profile quick (small-data defaults: stride 1, mirrored runs)",
-    ),
-}
-
-
-def add_bag_arguments(p: argparse.ArgumentParser) -> None:
-    """The options of the recordings path."""
-    p.add_argument(
-        "--bags",
-        nargs="+",
-        metavar="BAG",
-        help="fit to the car's own recordings with a reference β (bags or folders) instead "
-        "of simulating cars like it: identify the UKF's axles (measurable), fine-tune, "
-        "test on each recording's last --test-fraction",
-    )
-    p.add_argument(
-        "--topic-map",
-        type=Path,
-        metavar="FILE",
-        help="with --bags: read bags (and --test-bags) recorded with other topics "
-        "(docs/topic-maps.md)",
-    )
-    p.add_argument(
-        "--test-fraction",
-        type=float,
-        default=None,
-        help=f"with --bags: the last share of every recording kept for the test "
-        f"(default {DEFAULT_TEST_FRACTION:g})",
-    )
-    p.add_argument(
-        "--rehearse",
-        type=int,
-        metavar="RUNS",
-        default=None,
-        help="with --bags: simulated runs (fleet manoeuvres up to the limit, μ 0.3-1.0) of "
-        "cars like the description's, trained beside the recordings but never validated, "
-        "tested or calibrated on, so that the fit keeps what the shipped model knew "
-        f"beyond the recordings (default {DEFAULT_REHEARSAL_RUNS}; 0: none; about 9 s "
-        "of driving each; docs/evaluation/fit-bags, 'Rehearsal')",
-    )
-    p.add_argument(
-        "--interpolate",
-        type=float,
-        metavar="ALPHA",
-        default=None,
-        help="with --bags: keep the start model's weights moved this share of the way to "
-        f"the fine-tuned ones (default {DEFAULT_INTERPOLATION:g}: better on other drives "
-        "than the plain fine-tuning (1) and the start (0) on validation cars; "
-        "docs/evaluation/fit-bags)",
-    )
-    p.add_argument(
-        "--test-bags",
-        nargs="+",
-        metavar="BAG",
-        help="with --bags: other recordings of the car (bags or folders; other roads and "
-        "manoeuvres), scored whole after the fit and never used to identify, train, "
-        "choose or calibrate: the card's check on drives the fit has not seen",
-    )
-
-
-def check_bag_arguments(args: argparse.Namespace) -> float:
-    """Refuse options that do not go together; the test fraction to use."""
-    if args.bags is None:
-        for name in ("topic_map", "test_fraction", "test_bags", "rehearse", "interpolate"):
-            if getattr(args, name) is not None:
-                raise CliError(f"--{name.replace('_', '-')} needs --bags")
-        return 0.0
-    for name in ("cars", "test_runs"):
-        if getattr(args, name) is not None:
-            raise CliError(f"--{name.replace('_', '-')} is for simulated fits, not with --bags")
-    if args.rehearse is not None and args.rehearse < 0:
-        raise CliError(f"--rehearse must be >= 0 runs, got {args.rehearse}")
-    if args.interpolate is not None:
-        try:
-            check_alpha(args.interpolate)
-        except ValueError as err:
-            raise CliError(str(err)) from None
-    fraction = DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction
-    if not (0.0 < fraction < 1.0 and math.isfinite(fraction)):
-        raise CliError(f"--test-fraction must be in (0, 1), got {args.test_fraction}")
-    return fraction
-
-
-def _load(args: argparse.Namespace, bags: Sequence[str], **kwargs: Any) -> tuple[list[Any], Any]:
-    from sideslip_msgs_py.topic_map import TopicMap
-
-    from .dataset import load_runs
-
-    topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
-    return load_runs(list(bags), topic_map=topic_map, **kwargs)
 
 
 def split_recordings(
@@ -178,7 +63,9 @@ def split_recordings(
     from .identify_axles import CHANNELS
     from .splits import split_in_time
 
-    runs, report = _load(args, args.bags, **({"channels": CHANNELS} if measurable else {}))
+    runs, report = load_recordings(
+        args, args.bags, **({"channels": CHANNELS} if measurable else {})
+    )
     log(str(report))
     head, tail = split_in_time(runs, fraction, "test")
     longest = max((r.samples.stamp_ns[-1] - r.samples.stamp_ns[0]) * 1e-9 for r in tail)
@@ -208,16 +95,6 @@ def identify(head: Sequence[Any], vehicle: Path, ukf_file: Path, log: Callable) 
         f"-> {ukf_file}"
     )
     return found
-
-
-def interpolation(args: argparse.Namespace) -> float:
-    """``--interpolate``'s share, or the default."""
-    return DEFAULT_INTERPOLATION if args.interpolate is None else float(args.interpolate)
-
-
-def rehearsal_runs(args: argparse.Namespace) -> int:
-    """How many rehearsal runs the fit trains beside the recordings."""
-    return DEFAULT_REHEARSAL_RUNS if args.rehearse is None else int(args.rehearse)
 
 
 def simulate_rehearsal(
@@ -265,67 +142,6 @@ def simulate_rehearsal(
     return out
 
 
-def scored_traces(
-    args: argparse.Namespace,
-    bags: Sequence[str],
-    fraction: float | None,
-    models: Sequence[Path],
-    ukf_file: Path | None,
-    described_ukf: Path | None,
-    runs: Sequence[Any] | None = None,
-) -> tuple[list[Any], list[str]]:
-    """Every estimator's traces on each recording's test part (its last ``fraction``, as
-    ``sideslip-train`` cut it; ``None``: the whole recording), resampled to the models'
-    step, and the models' labels."""
-    import numpy as np
-
-    from sideslip_msgs_py.vehicle_description import VehicleDescription
-
-    from .evaluate import Trace, evaluate_runs, model_label, physics_filter
-    from .export import load_model
-    from .splits import split_in_time
-
-    loaded = [load_model(m) for m in models]
-    meta = loaded[0][1]
-    labels = [f"{model_label(m)} ({p.stem})" for (_, m), p in zip(loaded, models, strict=True)]
-    if runs is None:
-        runs, _ = _load(args, bags, step_s=meta.dt_s)
-    tail = runs if fraction is None else split_in_time(runs, fraction, "test")[1]
-    tail = [r for r in tail if len(r.samples) >= meta.window_steps]
-    if not tail:
-        where = "test bag" if fraction is None else "recording's test part"
-        raise CliError(
-            f"no {where} holds a full window of {meta.window_steps} samples: record longer"
-            + ("" if fraction is None else " or raise --test-fraction")
-        )
-    measurable = ukf_file is not None
-    traces = evaluate_runs(
-        tail,
-        [(label, net, m) for label, (net, m) in zip(labels, loaded, strict=True)],
-        window_steps=meta.window_steps,
-        dt_s=meta.dt_s,
-        vehicle=VehicleDescription.load(args.vehicle) if measurable else None,
-        observer_params_file=str(ukf_file) if measurable else None,
-        car="given" if measurable else "recorded",
-        filters={"ukf": str(ukf_file)} if measurable else None,
-    )
-    if measurable:
-        # The kinematic baselines read the lateral velocity: in a recording that is the
-        # reference itself, a sensor the car does not have.
-        traces = [t for t in traces if not t.estimator.startswith("Kinematic")]
-        traces = [
-            dataclasses.replace(t, estimator=IDENTIFIED_UKF) if t.estimator == "UKF" else t
-            for t in traces
-        ]
-    if described_ukf is not None:
-        for run in tail:
-            ref = run.samples.beta_rad()[meta.window_steps - 1 :]
-            t = (np.arange(ref.size) + meta.window_steps - 1) * meta.dt_s
-            est = physics_filter(run, "ukf", str(described_ukf), meta.window_steps)
-            traces.append(Trace(run.name, DESCRIBED_UKF, t, est, ref, None))
-    return traces, labels
-
-
 def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> list[Any]:
     """Read ``--test-bags`` as they will be scored (at the model's step), before anything
     is trained. Raises CliError (or DatasetError) when one is also a bag of ``--bags``
@@ -343,7 +159,7 @@ def check_test_bags(args: argparse.Namespace, meta: Any, log: Callable) -> list[
             + (f" (and {len(shared) - 1} more)" if len(shared) > 1 else "")
             + ": the separate recordings must be other drives than the fit's"
         )
-    runs, report = _load(args, args.test_bags, step_s=meta.dt_s)
+    runs, report = load_recordings(args, args.test_bags, step_s=meta.dt_s)
     if report.refused:
         raise CliError(f"--test-bags: {report.refused[0]}")
     scored = {r.bag for r in runs if len(r.samples) >= meta.window_steps}
@@ -426,14 +242,14 @@ def run(
         report.mkdir(exist_ok=True)
         stage(log, started, "scoring on the test part of every recording")
         traces, labels = scored_traces(args, args.bags, fraction, models, ukf_file, described)
-        test_part = _scored(traces, labels, report / "table.md", f"{desc.name}: test part")
+        test_part = scored_table(traces, labels, report / "table.md", f"{desc.name}: test part")
         new_drives = None
         if args.test_bags:
             stage(log, started, "scoring on --test-bags")
             traces, _ = scored_traces(
                 args, args.test_bags, None, models, ukf_file, described, test_runs
             )
-            new_drives = _scored(
+            new_drives = scored_table(
                 traces, labels, report / "test-bags.md", f"{desc.name}: --test-bags"
             )
             share = narrow_interval(new_drives)
@@ -441,6 +257,14 @@ def run(
                 print(
                     f"sideslip-fit: warning: only {share:.1%} of --test-bags' samples lie "
                     "inside the fitted model's ±1.96 σ: it is too narrow for those drives "
+                    "(the card says more)",
+                    file=sys.stderr,
+                )
+            share = wide_interval(new_drives)
+            if share is not None:
+                print(
+                    f"sideslip-fit: note: {share:.1%} of --test-bags' samples lie inside the "
+                    "fitted model's ±1.96 σ: wider than a 95 % interval needs on those drives "
                     "(the card says more)",
                     file=sys.stderr,
                 )
@@ -452,11 +276,11 @@ def run(
         "bags": [str(b) for b in args.bags],
         "test_fraction": fraction,
         "models": {"fitted": labels[0], "shipped": labels[1]},
-        "pooled": _pooled_json(test_part),
+        "pooled": pooled_json(test_part),
     }
     if new_drives is not None:
         summary["test_bags"] = [str(b) for b in args.test_bags]
-        summary["test_bags_pooled"] = _pooled_json(new_drives)
+        summary["test_bags_pooled"] = pooled_json(new_drives)
     (report / "metrics.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     train_metrics = json.loads((work / "train-run" / "metrics.json").read_text())
     from sideslip_msgs_py.artifact import read_artifact
@@ -488,34 +312,6 @@ def run(
     args.out.with_suffix(".md").write_text(card)
     stage(log, started, f"wrote {args.out} and {args.out.with_suffix('.md')}")
     return 0
-
-
-def _scored(traces: Sequence[Any], labels: Sequence[str], table: Path, title: str) -> Scored:
-    """Pooled rows (the fitted model first, then what the node gives without the fit,
-    then the rest) and the published 95 % interval's share of samples for the models
-    with σ; writes the per-recording ``table``."""
-    from .evaluate import interval_coverage, pooled
-    from .evaluate_tables import table_markdown
-
-    table.write_text(table_markdown(list(traces), title))
-    rows = pooled(list(traces))
-    order = [*labels, IDENTIFIED_UKF, DESCRIBED_UKF, *rows]
-    rows = {name: rows[name] for name in dict.fromkeys(order) if name in rows}
-    inside = {n: interval_coverage([t for t in traces if t.estimator == n]) for n in rows}
-    return Scored(rows, {n: c for n, c in inside.items() if math.isfinite(c)}, table)
-
-
-def _pooled_json(scored: Scored) -> list[dict[str, Any]]:
-    from .evaluate import metrics_json
-
-    return [
-        {
-            "estimator": n,
-            **metrics_json(m),
-            **({"coverage_95": scored.inside[n]} if n in scored.inside else {}),
-        }
-        for n, m in scored.rows.items()
-    ]
 
 
 def stage(log: Callable, started: float, what: str) -> None:
