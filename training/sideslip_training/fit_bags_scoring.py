@@ -107,6 +107,8 @@ def scored_table(traces: Sequence[Any], labels: Sequence[str], table: Path, titl
 
 
 def pooled_json(scored: Scored) -> list[dict[str, Any]]:
+    """The pooled rows as the summary's JSON: metrics in degrees, and the share inside
+    ±1.96 σ (``coverage_95``) for the models that publish σ."""
     from .evaluate import metrics_json
 
     return [
