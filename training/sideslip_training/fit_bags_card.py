@@ -127,10 +127,15 @@ def gentle_recordings(uncertainty: dict[str, Any] | None) -> float | None:
     return fit.lateral_acceleration_mps2
 
 
+def fitted_share(scored: Scored) -> float | None:
+    """The fitted model's (first row's) share inside ±1.96 σ, None without σ."""
+    return scored.inside.get(next(iter(scored.rows)))
+
+
 def narrow_interval(scored: Scored) -> float | None:
-    """The fitted model's (first row's) share inside ±1.96 σ when below
-    :data:`NARROW_SHARE`, else None."""
-    share = scored.inside.get(next(iter(scored.rows)))
+    """The fitted model's share inside ±1.96 σ when below :data:`NARROW_SHARE`, else
+    None."""
+    share = fitted_share(scored)
     return share if share is not None and share < NARROW_SHARE else None
 
 
@@ -142,9 +147,9 @@ and 0.999–1.000 on other drives (docs/evaluation/intervals, "fitted half way b
 
 
 def wide_interval(scored: Scored) -> float | None:
-    """The fitted model's (first row's) share inside ±1.96 σ when at or above
-    :data:`WIDE_SHARE`, else None."""
-    share = scored.inside.get(next(iter(scored.rows)))
+    """The fitted model's share inside ±1.96 σ when at or above :data:`WIDE_SHARE`, else
+    None."""
+    share = fitted_share(scored)
     return share if share is not None and share >= WIDE_SHARE else None
 
 
