@@ -24,14 +24,12 @@ import yaml
 
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import held_out_digests
-from sideslip_sim.vehicle import vehicle_record
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import Description
-from sideslip_training.physics_params import nominal_parameters, params_yaml
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import VAL_CARS, VAL_SEED
-from held_out_fit import description, pooled_mae
+from held_out_fit import description, observer_file_args, pooled_mae, write_true_ukf
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -57,16 +55,12 @@ def main(argv: list[str] | None = None) -> int:
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
         described = work / "described.ukf.yaml"
         described.write_text(Description.load(desc).ukf_params_yaml())
-        true_file = work / "true.ukf.yaml"
-        true_file.write_text(
-            params_yaml("ukf", name, nominal_parameters("ukf", vehicle_record(car)), __file__)
-        )
+        true_file = write_true_ukf(car, work / "true.ukf.yaml", "described_validation.py")
         mae: dict[str, float] = {}
         for tag, files in (
-            ("described", ["--vehicle", str(desc), "--observer-params", str(described),
-                           "--car", "given", "--ukf-params", str(described)]),
+            ("described", observer_file_args(desc, described)),
             ("true", ["--ukf-params", str(true_file)]),
-        ):  # fmt: skip
+        ):
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *map(str, args.model), "--data", *bags,
                                   "--out", str(report), "--force", *files])  # fmt: skip

@@ -73,6 +73,21 @@ def description(car: VehicleParams) -> dict[str, object]:
     return {"name": car.name, **nominal.to_dict(), "drive_layout": car.drive_layout}
 
 
+def observer_file_args(desc: Path, ukf: Path) -> list[str]:
+    """``sideslip-evaluate`` options that run the UKF and the observer-reading models on
+    ``ukf`` for a car known only by its description ``desc``."""
+    return ["--vehicle", str(desc), "--observer-params", str(ukf), "--car", "given",
+            "--ukf-params", str(ukf)]  # fmt: skip
+
+
+def write_true_ukf(car: VehicleParams, path: Path, tool: str) -> Path:
+    """The car's true ``ukf`` file (its nominal parameters), written by ``tool``."""
+    path.write_text(
+        params_yaml("ukf", car.name, nominal_parameters("ukf", vehicle_record(car)), tool)
+    )
+    return path
+
+
 def exact_runs(car: VehicleParams, seed: int) -> list[VehicleRun]:
     """The fit's amount of driving, all of it on ``car`` itself."""
     runs = fleet_runs([car] * PROFILE.cars, FLEET_RUNS_PER_CAR * PROFILE.cars, seed)
@@ -239,24 +254,15 @@ def measurable(args: argparse.Namespace) -> int:
         except _Failed as failed:
             return failed.code
         described = fit.with_suffix(".ukf.yaml")
-        true_file = work / "true.ukf.yaml"
-        true_file.write_text(
-            params_yaml(
-                "ukf", name, nominal_parameters("ukf", vehicle_record(car)), "held_out_fit.py"
-            )
-        )
+        true_file = write_true_ukf(car, work / "true.ukf.yaml", "held_out_fit.py")
         shipped = str(resolve(SHIPPED_MEASURABLE))
         mae = {}
         fitted = [] if args.zero_shot else [str(fit)]
         for tag, models, files in (
-            ("described", [*fitted, shipped],
-             ["--vehicle", str(desc), "--observer-params", str(described), "--car", "given",
-              "--ukf-params", str(described)]),
+            ("described", [*fitted, shipped], observer_file_args(desc, described)),
             ("true", [shipped], ["--ukf-params", str(true_file)]),
             *([] if ident is None else [
-                ("identified", [shipped],
-                 ["--vehicle", str(desc), "--observer-params", str(ident), "--car", "given",
-                  "--ukf-params", str(ident)])]),
+                ("identified", [shipped], observer_file_args(desc, ident))]),
         ):  # fmt: skip
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *models, "--data", *bags, "--out", str(report),
