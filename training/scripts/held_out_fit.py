@@ -26,7 +26,11 @@ fit fine-tunes ``fleet_ukf_measurable`` with the UKF run on the described car
 (:mod:`sideslip_sim.described_car`). Scored with the described car's files, as the node
 would run them (``--car given``): the fit, the zero-shot ``fleet_ukf_measurable`` and the
 UKF; beside them the zero-shot model and the UKF with the car's true parameters, which a
-user without its tyre data does not have. No exact-simulation yardstick here.
+user without its tyre data does not have. ``--exact`` adds the yardstick of issue 9:
+the fit's own recipe (``sideslip-train --init fleet_ukf_measurable``, the quick
+profile's epochs, no mirroring) on the car's exact simulation, the UKF run on each
+bag's true car, scored with the car's true files; ``fit / exact`` then compares what a
+description gives with what the car's own simulation gives.
 ``--zero-shot`` leaves the fit out (minutes instead of an hour): the shipped model and
 the UKF with the described and with the true car's files. ``--identify MINUTES`` adds
 both with the axles identified from that much of the car's own labelled driving
@@ -145,6 +149,32 @@ def fit_car(
     return bags, desc, fit, time.perf_counter() - started
 
 
+def train_exact(
+    args: argparse.Namespace, car: VehicleParams, work: Path, recipe: list[str]
+) -> Path:
+    """The yardstick: ``sideslip-train`` with ``recipe`` on the fit's amount of driving of
+    ``car`` itself (skipped when ``work/exact.safetensors`` exists)."""
+    exact = work / "exact.safetensors"
+    if exact.exists():
+        return exact
+    data = work / "exact-train"
+    prepare_output(data, force=True)
+    generate(exact_runs(car, args.seed), data, seed=args.seed,
+             preset_name="held-out-exact (yardstick only)", jobs=2, progress=False)  # fmt: skip
+    code = train_main(["--data", str(data), "--out", str(exact), "--force",
+                       "--profile", PROFILE.train_profile, "--seed", str(args.seed),
+                       "--device", "cpu", "--quiet", *recipe])  # fmt: skip
+    if code:
+        raise _Failed(code)
+    return exact
+
+
+# The measurable fit's training options besides its data (sideslip_training.fit): the
+# exact-simulation yardstick trains the same way, on each bag's true car.
+MEASURABLE_RECIPE = ["--init", SHIPPED_MEASURABLE, "--mirror", "no",
+                     "--max-epochs", str(PROFILE.max_epochs)]  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--held-out", type=Path, default=Path("data/held-out"))
@@ -164,7 +194,15 @@ def main(argv: list[str] | None = None) -> int:
         help="with --features measurable: also score the shipped model and the UKF with "
         "the axles identified from this many minutes of the car's own labelled driving",
     )
+    p.add_argument(
+        "--exact",
+        action="store_true",
+        help="with --features measurable: also train the yardstick on the car's exact "
+        "simulation (true files) and report fit / exact",
+    )
     args = p.parse_args(argv)
+    if args.exact and (args.features != "measurable" or args.zero_shot):
+        p.error("--exact needs --features measurable and a fit (no --zero-shot)")
     if args.zero_shot and args.features != "measurable":
         p.error("--zero-shot needs --features measurable")
     if args.identify is not None and args.features != "measurable":
@@ -179,18 +217,10 @@ def main(argv: list[str] | None = None) -> int:
             bags, _desc, fit, fit_s = fit_car(args, name, car, work)
         except _Failed as failed:
             return failed.code
-        exact = work / "exact.safetensors"
-        if not exact.exists():
-            data = work / "exact-train"
-            prepare_output(data, force=True)
-            runs = exact_runs(car, args.seed)
-            generate(runs, data, seed=args.seed, preset_name="held-out-exact (yardstick only)",
-                     jobs=2, progress=False)  # fmt: skip
-            code = train_main(["--data", str(data), "--out", str(exact), "--force",
-                               "--profile", PROFILE.train_profile, "--init", SHIPPED_PAPER,
-                               "--seed", str(args.seed), "--device", "cpu", "--quiet"])  # fmt: skip
-            if code:
-                return code
+        try:
+            exact = train_exact(args, car, work, ["--init", SHIPPED_PAPER])
+        except _Failed as failed:
+            return failed.code
         report = work / "report"
         code = evaluate_main(["--model", str(fit), str(exact), str(resolve(SHIPPED_PAPER)),
                               "--data", *bags, "--out", str(report), "--force",
@@ -251,6 +281,7 @@ def measurable(args: argparse.Namespace) -> int:
         try:
             bags, desc, fit, fit_s = fit_car(args, name, car, work)
             ident = None if args.identify is None else identified(args, name, desc)
+            exact = train_exact(args, car, work, MEASURABLE_RECIPE) if args.exact else None
         except _Failed as failed:
             return failed.code
         described = fit.with_suffix(".ukf.yaml")
@@ -260,7 +291,8 @@ def measurable(args: argparse.Namespace) -> int:
         fitted = [] if args.zero_shot else [str(fit)]
         for tag, models, files in (
             ("described", [*fitted, shipped], observer_file_args(desc, described)),
-            ("true", [shipped], ["--ukf-params", str(true_file)]),
+            ("true", [*([] if exact is None else [str(exact)]), shipped],
+             ["--ukf-params", str(true_file)]),
             *([] if ident is None else [
                 ("identified", [shipped], observer_file_args(desc, ident))]),
         ):  # fmt: skip
@@ -270,15 +302,18 @@ def measurable(args: argparse.Namespace) -> int:
                                   *files])  # fmt: skip
             if code:
                 return code
-            got = pooled_mae(report, ["fit", SHIPPED_MEASURABLE])
+            got = pooled_mae(report, ["fit", "exact", SHIPPED_MEASURABLE])
             # One model in a report: sideslip-evaluate does not add its file's stem.
             got = {SHIPPED_MEASURABLE if k.startswith("LSTM") else k: v for k, v in got.items()}
             mae.update({f"{k} [{tag}]": v for k, v in got.items()})
         results[name] = {"mae_deg": mae, "fit_wall_s": round(fit_s, 1)}
+        if exact is not None:
+            results[name]["fit_over_exact"] = mae["fit [described]"] / mae["exact [true]"]
         print(f"{name}: {results[name]}", file=sys.stderr)
     (args.out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
     cols = [
         *([] if args.zero_shot else [("fit (description)", "fit [described]")]),
+        *([] if not args.exact else [("exact simulation, true car", "exact [true]")]),
         ("zero-shot, described car", f"{SHIPPED_MEASURABLE} [described]"),
         ("UKF, described car", "UKF [described]"),
         ("zero-shot, true car", f"{SHIPPED_MEASURABLE} [true]"),
@@ -292,10 +327,13 @@ def measurable(args: argparse.Namespace) -> int:
             ]
         ),
     ]
-    lines = ["| car | " + " | ".join(c for c, _ in cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    heads = [c for c, _ in cols] + (["fit / exact"] if args.exact else [])
+    lines = ["| car | " + " | ".join(heads) + " |", "|---" * (len(heads) + 1) + "|"]
     for name, r in results.items():
         m = r["mae_deg"]
-        lines.append(f"| {name} | " + " | ".join(f"{m[k]:.4f}" for _, k in cols) + " |")
+        ratio = [f"{r['fit_over_exact']:.2f}"] if args.exact else []
+        cells = [*(f"{m[k]:.4f}" for _, k in cols), *ratio]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     (args.out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
