@@ -286,6 +286,24 @@ def test_a_ukf_model_of_a_recording_without_a_car_is_tested_with_the_given_car(
     assert meta.envelope is not None and meta.envelope["cars"] == 1  # the given car
 
 
+def test_mixed_cars_give_each_bag_its_true_or_described_car_by_its_name(sim_bag_dir: Path):
+    """--car mixed: a bag's UKF runs on its described car or its true one, fixed by the
+    bag's name (its segments and mirror image share the side), about half each."""
+    run = load_runs([sim_bag_dir])[0][0]
+    true_params = observer.run_params(run, None)[0]
+    described = observer.run_params(run, None, car="described")[0]
+    sides = {}
+    for name in (f"fleet1_car{i:03d}_0_cornering" for i in range(200)):
+        named = dataclasses.replace(run, name=name, bag=name)
+        got = observer.run_params(named, None, car="mixed")[0]
+        assert got in (true_params, described)
+        sides[name] = got == described
+        segment = dataclasses.replace(named, name=name + "#1")
+        assert (observer.run_params(segment, None, car="mixed")[0] == described) == sides[name]
+    assert 70 <= sum(sides.values()) <= 130  # a fair coin over 200 names: ±4.2 SD
+    assert all(sides[n] == observer.described_half(n) for n in sides)
+
+
 def test_a_given_car_replaces_the_bags_own_car_in_training_and_scoring(
     sim_bag_dir: Path, tmp_path: Path
 ):

@@ -10,6 +10,11 @@ car's true one (``sideslip-evaluate``, pooled MAE per car).
 
     python training/scripts/described_validation.py --model A.safetensors B.safetensors \
         --data data/val-benchmark data/val-benchmark-2 --out data/described-validation
+
+``--held-out`` takes the cars from ``sideslip_sim.held_out`` instead (``--data
+data/held-out``: the held-out benchmark, for a model chosen before, scored once);
+``--identified DIR`` adds a third file per car, ``DIR/CAR/identified-5min.ukf.yaml`` (as
+``held_out_fit.py --zero-shot --identify 5`` writes it).
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from pathlib import Path
 import yaml
 
 from sideslip_sim.fleet import sample_fleet
-from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import Description
 
@@ -37,11 +42,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", nargs="+", type=Path, required=True, help=".safetensors files")
     p.add_argument("--data", nargs="+", type=Path, required=True)
     p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--held-out", action="store_true", help="the held-out cars' runs")
+    p.add_argument("--identified", type=Path, help="folder of identified-axle ukf files")
     args = p.parse_args(argv)
-    fleet = {
-        v.name: v
-        for v in sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
-    }
+    if args.held_out:
+        fleet = held_out_vehicles()
+    else:
+        fleet = {
+            v.name: v
+            for v in sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
+        }
     bags_of: dict[str, list[str]] = defaultdict(list)
     for folder in args.data:
         for run in json.loads((folder / "index.json").read_text())["runs"]:
@@ -57,9 +67,16 @@ def main(argv: list[str] | None = None) -> int:
         described.write_text(Description.load(desc).ukf_params_yaml())
         true_file = write_true_ukf(car, work / "true.ukf.yaml", "described_validation.py")
         mae: dict[str, float] = {}
+        identified = None
+        if args.identified is not None:
+            identified = args.identified / name / "identified-5min.ukf.yaml"
+            if not identified.exists():
+                print(f"{name}: no {identified}", file=sys.stderr)
+                return 2
         for tag, files in (
             ("described", observer_file_args(desc, described)),
             ("true", ["--ukf-params", str(true_file)]),
+            *([] if identified is None else [("identified", observer_file_args(desc, identified))]),
         ):
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *map(str, args.model), "--data", *bags,
@@ -70,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         results[name] = mae
         print(name, {k: round(v, 4) for k, v in mae.items() if "β" not in k}, file=sys.stderr)
     (args.out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
-    for tag in ("described", "true"):
+    for tag in ("described", "true", *([] if args.identified is None else ["identified"])):
         for key in [*stems, "UKF"]:
             values = [r[f"{key} [{tag}]"] for r in results.values()]
             mean = sum(values) / len(values)

@@ -37,6 +37,9 @@ CAR_SOURCES: Final = {
     "described": "each recorded car as its description alone tells it (the fleet's "
     "typical tyres, inertia and balance for the rest): the UKF a user who has only the "
     "description runs",
+    "mixed": "half the recorded bags (fixed by a digest of the bag's name) as described, "
+    "the other half recorded: trains a model that reads the UKF to correct it with right "
+    "and with description-only parameters",
 }
 """Where a run's car parameters (the UKF observer's, the ``vehicle.*`` inputs') come from."""
 

@@ -86,6 +86,13 @@ def _params_of_car(vehicle_json: str) -> dict[str, Any]:
     return nominal_parameters(BACKEND, json.loads(vehicle_json))
 
 
+def described_half(bag: str) -> bool:
+    """Whether ``--car mixed`` gives the bag ``bag`` its described car: by a digest of the
+    name, not by position, so that a bag keeps its side whatever else is loaded beside it
+    and a run's segments and mirror image share it."""
+    return hashlib.sha256(bag.encode()).digest()[0] % 2 == 1
+
+
 def params_of_described(vehicle: Mapping[str, Any]) -> dict[str, Any]:
     """The ``ukf`` params of the car a simulated car's description stands for: what a
     user who knows only the description gives the node (:mod:`sideslip_sim.described_car`)."""
@@ -124,6 +131,8 @@ def run_params(
     car = run.car_source or car
     vehicle = run.run_metadata.get("vehicle")
     recorded = isinstance(vehicle, Mapping)
+    if car == "mixed":
+        car = "described" if described_half(run.bag) else "recorded"
     if recorded and car == "recorded":
         return params_of_vehicle(vehicle), steering_limit_m(vehicle)
     if recorded and car == "described":
