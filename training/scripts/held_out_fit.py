@@ -60,7 +60,13 @@ from sideslip_sim.presets import FLEET_RUNS_PER_CAR, VehicleRun, fleet_runs
 from sideslip_sim.vehicle import VehicleParams, vehicle_record
 from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
-from sideslip_training.fit import FIT_PROFILES, SHIPPED_MEASURABLE, SHIPPED_PAPER, Description
+from sideslip_training.fit import (
+    FIT_PROFILES,
+    SHIPPED_MEASURABLE,
+    SHIPPED_PAPER,
+    Description,
+    recipe_options,
+)
 from sideslip_training.fit import main as fit_main
 from sideslip_training.identify_axles import main as identify_main
 from sideslip_training.init_model import resolve
@@ -161,18 +167,15 @@ def train_exact(
     prepare_output(data, force=True)
     generate(exact_runs(car, args.seed), data, seed=args.seed,
              preset_name="held-out-exact (yardstick only)", jobs=2, progress=False)  # fmt: skip
-    code = train_main(["--data", str(data), "--out", str(exact), "--force",
-                       "--profile", PROFILE.train_profile, "--seed", str(args.seed),
-                       "--device", "cpu", "--quiet", *recipe])  # fmt: skip
+    code = train_main(["--data", str(data), "--out", str(exact), "--force", "--seed",
+                       str(args.seed), "--device", "cpu", "--quiet", *recipe])  # fmt: skip
     if code:
         raise _Failed(code)
     return exact
 
 
-# The measurable fit's training options besides its data (sideslip_training.fit): the
-# exact-simulation yardstick trains the same way, on each bag's true car.
-MEASURABLE_RECIPE = ["--init", SHIPPED_MEASURABLE, "--mirror", "no",
-                     "--max-epochs", str(PROFILE.max_epochs)]  # fmt: skip
+# The exact-simulation yardstick trains as the measurable fit does, on each bag's true car.
+MEASURABLE_RECIPE = ["--init", SHIPPED_MEASURABLE, *recipe_options(PROFILE)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -218,7 +221,9 @@ def main(argv: list[str] | None = None) -> int:
         except _Failed as failed:
             return failed.code
         try:
-            exact = train_exact(args, car, work, ["--init", SHIPPED_PAPER])
+            exact = train_exact(
+                args, car, work, ["--profile", PROFILE.train_profile, "--init", SHIPPED_PAPER]
+            )
         except _Failed as failed:
             return failed.code
         report = work / "report"

@@ -155,6 +155,17 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def recipe_options(profile: FitProfile) -> list[str]:
+    """The ``sideslip-train`` options a fit of ``profile`` trains with, besides its data,
+    start model, device and seed (also the recipe of ``held_out_fit.py``'s yardstick)."""
+    # The fleet around the car is simulated, already drives both ways and can be made
+    # bigger at will: mirroring it would double the time for nothing.
+    options = ["--profile", profile.train_profile, "--mirror", "no"]
+    if profile.max_epochs is not None:
+        options += ["--max-epochs", str(profile.max_epochs)]
+    return options
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from sideslip_sim.generate import generate, prepare_output
 
@@ -214,13 +225,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     stamp.write_text(json.dumps({"key": key, "vehicle": str(args.vehicle)}) + "\n")
     stage(log, started, "training")
     common = ["--data", str(work / "train"), "--out", str(args.out), "--force"]
-    common += ["--profile", profile.train_profile, "--device", args.device]
+    common += [*recipe_options(profile), "--device", args.device]
     common += ["--seed", str(args.seed), *(["--quiet"] if args.quiet else [])]
-    # The fleet around the car is simulated, already drives both ways and can be made
-    # bigger at will: mirroring it would double the time for nothing.
-    common += ["--mirror", "no"]
-    if profile.max_epochs is not None:
-        common += ["--max-epochs", str(profile.max_epochs)]
     if args.learning_rate is not None:
         common += ["--learning-rate", repr(args.learning_rate)]
     code = train_main([*common, "--init", SHIPPED[args.features], *car_files])
