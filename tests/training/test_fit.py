@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import shutil
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_sim.fleet import sample_fleet
 from sideslip_training import observer
 from sideslip_training.fit import Description, main
+from sideslip_training.init_model import resolve
 
 SEDAN = {
     "name": "my_sedan",
@@ -85,11 +87,14 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     desc = tmp_path / "sedan.yaml"
     desc.write_text(yaml.safe_dump(SEDAN))
     out = tmp_path / "sedan.safetensors"
+    # The start model given as a file (a user's own, here a copy of the shipped one).
+    start = tmp_path / "my_start.safetensors"
+    shutil.copyfile(resolve("fleet_ukf_measurable"), start)
     args = ["--vehicle", str(desc), "--out", str(out), "--cars", "1", "--test-runs", "1"]
     args += ["--max-epochs", "1", "--features", "measurable", "--device", "cpu", "--quiet"]
-    assert main(args) == 0
+    assert main([*args, "--init", str(start)]) == 0
     meta = read_artifact(out)[1]
-    assert meta.provenance["init"] == "fleet_ukf_measurable.safetensors"
+    assert meta.provenance["init"] == "my_start.safetensors"
     # The ukf file beside the model is the described car's, and the model knows that
     # car as one of its training cars: a node given the file runs the network.
     ukf = yaml.safe_load(out.with_suffix(".ukf.yaml").read_text())
@@ -97,9 +102,30 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     assert not FleetEnvelope.from_dict(meta.envelope).outside(ukf, "described car")
     card = out.with_suffix(".md").read_text()
     assert f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}" in card
-    assert "| UKF |" in card and "(fleet_ukf_measurable)" in card
+    assert "| UKF |" in card and "(my_start)" in card
     # A user with labelled recordings is pointed to the car's own axles.
     assert "sideslip-identify-axles --vehicle" in card
+
+
+@pytest.mark.parametrize(
+    ("features", "start", "says"),
+    [
+        ("measurable", "fleet_lstm_paper", "reads Y_v"),
+        ("paper", "fleet_ukf_measurable", "reads the UKF's outputs"),
+        ("paper", "no_such_model", "no such model file"),
+    ],
+)
+def test_a_start_model_that_does_not_fit_the_features_is_refused_before_simulating(
+    tmp_path: Path, capsys, features: str, start: str, says: str
+) -> None:
+    desc = tmp_path / "sedan.yaml"
+    desc.write_text(yaml.safe_dump(SEDAN))
+    out = tmp_path / "sedan.safetensors"
+    argv = ["--vehicle", str(desc), "--out", str(out), "--features", features, "--init", start]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and f"--init {start}" in err and len(err.splitlines()) == 1
+    assert not out.with_suffix(".fit").exists()
 
 
 def _as_recorded(car) -> dict:

@@ -139,6 +139,13 @@ def _parser() -> argparse.ArgumentParser:
         f"{SHIPPED_MEASURABLE} with the UKF run on the described car (its ukf params file "
         "is written next to OUT)",
     )
+    p.add_argument(
+        "--init",
+        metavar="MODEL",
+        help=f"the model to fine-tune (a shipped name or a .safetensors file; default "
+        f"{SHIPPED_PAPER} or {SHIPPED_MEASURABLE}, by --features); its features must be "
+        "the --features set's",
+    )
     p.add_argument("--cars", type=int, help="override the profile's number of cars")
     p.add_argument("--test-runs", type=int, help="override the profile's test runs")
     p.add_argument("--max-epochs", type=int, help="override the profile's cap on epochs")
@@ -166,6 +173,26 @@ def recipe_options(profile: FitProfile) -> list[str]:
     return options
 
 
+def check_start(spec: str, features: str) -> None:
+    """Refuse, before minutes of simulation, a start model the fit cannot fine-tune:
+    ``measurable`` fits run without Y_v, ``paper`` fits without the UKF."""
+    from sideslip_msgs_py.model_inputs import needs_observer, required_channels
+
+    from .init_model import InitError, load_init
+
+    try:
+        meta = load_init(spec).meta
+    except InitError as err:
+        raise CliError(str(err)) from None
+    if features == "measurable" and "y_v_mps" in required_channels(meta.features, meta.prior):
+        raise CliError(f"--init {spec}: reads Y_v, not a measurable model (--features paper?)")
+    if features == "paper" and needs_observer(meta.features, meta.prior):
+        raise CliError(
+            f"--init {spec}: reads the UKF's outputs, which a paper fit does not run "
+            "(--features measurable?)"
+        )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from sideslip_sim.generate import generate, prepare_output
 
@@ -181,11 +208,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.out.exists() and not args.force:
             raise CliError(f"--out {args.out} exists; pass --force to replace it")
         desc = Description.load(args.vehicle)
+        start = args.init or SHIPPED[args.features]
+        check_start(start, args.features)
         test_fraction = check_bag_arguments(args)
         if args.bags is not None:
             from .fit_bags import run as fit_to_bags
 
-            return fit_to_bags(args, desc, SHIPPED[args.features], test_fraction, log, started)
+            return fit_to_bags(args, desc, start, test_fraction, log, started)
         profile = FIT_PROFILES[args.profile]
         for name in ("cars", "test_runs", "max_epochs"):
             value = getattr(args, name)
@@ -229,13 +258,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     common += ["--seed", str(args.seed), *(["--quiet"] if args.quiet else [])]
     if args.learning_rate is not None:
         common += ["--learning-rate", repr(args.learning_rate)]
-    code = train_main([*common, "--init", SHIPPED[args.features], *car_files])
+    code = train_main([*common, "--init", start, *car_files])
     if code != 0:
         return code
     stage(log, started, "evaluating on the test car")
     from .init_model import resolve
 
-    models = [str(args.out), str(resolve(SHIPPED[args.features]))]
+    models = [str(args.out), str(resolve(start))]
     # measurable: the UKF beside them, and every model fed the described car's files.
     report = work / "report"
     code = evaluate_main(
