@@ -14,7 +14,7 @@ from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_sim.fleet import sample_fleet
 from sideslip_training import observer
-from sideslip_training.fit import Description, main
+from sideslip_training.fit import Description, default_start, main
 from sideslip_training.init_model import resolve
 
 SEDAN = {
@@ -89,7 +89,7 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     out = tmp_path / "sedan.safetensors"
     # The start model given as a file (a user's own, here a copy of the shipped one).
     start = tmp_path / "my_start.safetensors"
-    shutil.copyfile(resolve("fleet_ukf_measurable"), start)
+    shutil.copyfile(resolve(default_start("measurable", bags=False)), start)
     args = ["--vehicle", str(desc), "--out", str(out), "--cars", "1", "--test-runs", "1"]
     args += ["--max-epochs", "1", "--features", "measurable", "--device", "cpu", "--quiet"]
     assert main([*args, "--init", str(start)]) == 0
@@ -105,6 +105,19 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     assert "| UKF |" in card and "(my_start)" in card
     # A user with labelled recordings is pointed to the car's own axles.
     assert "sideslip-identify-axles --vehicle" in card
+
+
+def test_a_description_alone_starts_from_the_model_trained_on_described_cars_too() -> None:
+    # Recordings identify the axles (a nearly right filter): the model trained on true
+    # files. A description alone leaves the filter's tyres typical: the model that saw
+    # described cars' filters in training, with the same inputs.
+    assert default_start("measurable", bags=False) == "fleet_ukf_described"
+    assert default_start("measurable", bags=True) == "fleet_ukf_measurable"
+    assert default_start("paper", bags=False) == default_start("paper", bags=True)
+    described = read_artifact(resolve("fleet_ukf_described"))[1]
+    measurable = read_artifact(resolve("fleet_ukf_measurable"))[1]
+    assert described.features == measurable.features and described.prior == "ukf"
+    assert "--car mixed" in described.provenance["command"]
 
 
 @pytest.mark.parametrize(

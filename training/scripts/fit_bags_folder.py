@@ -21,10 +21,11 @@ def study_parser(doc: str) -> argparse.ArgumentParser:
     return p
 
 
-def fitted_car(work: Path) -> dict[str, Any]:
-    """``predict_run``'s car arguments for the car fitted in ``work``."""
+def fitted_car(work: Path, stem: str = "fitted") -> dict[str, Any]:
+    """``predict_run``'s car arguments for the car fitted in ``work`` (its model and
+    ``ukf`` file named ``stem``)."""
     return {
         "vehicle": VehicleDescription.load(work / "description.yaml"),
-        "observer_params_file": str(work / "fitted.ukf.yaml"),
+        "observer_params_file": str(work / f"{stem}.ukf.yaml"),
         "car": "given",
     }

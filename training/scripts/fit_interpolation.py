@@ -16,6 +16,12 @@ prints a markdown table.
 
     python training/scripts/fit_interpolation.py --cars data/fit-bags-check-u/fleet2_car00{0,1} \
         --drives data/val-benchmark --out FILE.json
+
+Fits from a description (``fit_validation.py`` folders: ``--fitted fit-STEM``, the
+described car's file beside it) from another start (``--start``):
+
+    python training/scripts/fit_interpolation.py --cars data/fit-validation/fleet2_car0* \
+        --fitted fit-o5dm --start O5DM.safetensors --drives data/val-benchmark --out FILE.json
 """
 
 from __future__ import annotations
@@ -52,15 +58,17 @@ def main(argv: list[str] | None = None) -> int:
     p = study_parser(__doc__)
     p.add_argument("--drive-glob", default="{car}_*", help="the car's drives in --drives")
     p.add_argument("--alphas", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
+    p.add_argument("--start", default=START, help="the start model the fits fine-tuned")
+    p.add_argument("--fitted", default="fitted", help="the fitted model's file stem")
     args = p.parse_args(argv)
-    start_net, start_meta = load_model(resolve(START))
+    start_net, start_meta = load_model(resolve(args.start))
     summary: dict[str, dict[str, float]] = {}
     torch.set_num_threads(1)
     for work in args.cars:
-        net, meta = load_model(work / "fitted.safetensors")
+        net, meta = load_model(work / f"{args.fitted}.safetensors")
         for key in NORMALISATION:
             if np.any(np.asarray(getattr(meta, key)) != np.asarray(getattr(start_meta, key))):
-                raise SystemExit(f"{work}: {key} differs from {START}'s: weights not comparable")
+                raise SystemExit(f"{work}: {key} differs from {args.start}'s: not comparable")
         drives = sorted(args.drives.glob(args.drive_glob.format(car=work.name)))
         if not drives:
             raise SystemExit(f"{work.name}: no drives in {args.drives}")
@@ -72,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
             window_steps=meta.window_steps,
             dt_s=meta.dt_s,
             beyond_fit_range="model",
-            **fitted_car(work),
+            **fitted_car(work, args.fitted),
         )
         rows = pooled(traces)
         summary[work.name] = {name: rows[name].mae for name, _, _ in models}

@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     means = {k: sum(r[k] for r in results.values()) / len(results) for k in keys}
     lines.append("| mean | " + " | ".join(f"{means[k]:.4f}" for k in keys) + " |\n")
     best = {n: min(keys[: len(stems)], key=lambda k: r[k]) for n, r in results.items()}
-    for k in keys[: len(stems)]:
+    for k in keys[: len(stems)] if len(stems) > 1 else []:
         lines.append(f"{k}: best fit on {sum(b == k for b in best.values())} of {len(best)} cars")
     (args.out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

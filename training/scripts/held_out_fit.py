@@ -22,15 +22,17 @@ the ratio fit / exact go to ``OUT/summary.json`` and ``OUT/table.md``.
     python training/scripts/held_out_fit.py --held-out data/held-out --out data/held-out-fit
 
 ``--features measurable`` (no Y_v) asks what a user with only the description gets: the
-fit fine-tunes ``fleet_ukf_measurable`` with the UKF run on the described car
-(:mod:`sideslip_sim.described_car`). Scored with the described car's files, as the node
-would run them (``--car given``): the fit, the zero-shot ``fleet_ukf_measurable`` and the
-UKF; beside them the zero-shot model and the UKF with the car's true parameters, which a
-user without its tyre data does not have. ``--exact`` adds the yardstick of issue 9:
-the fit's own recipe (``sideslip-train --init fleet_ukf_measurable``, the quick
-profile's epochs, no mirroring) on the car's exact simulation, the UKF run on each
-bag's true car, scored with the car's true files; ``fit / exact`` then compares what a
-description gives with what the car's own simulation gives.
+fit fine-tunes its default start (``fleet_ukf_described`` since 2026-12-04, before that
+``fleet_ukf_measurable``; ``fit_validation.py`` compares starts) with the UKF run on the
+described car (:mod:`sideslip_sim.described_car`). Scored with the described car's
+files, as the node would run them (``--car given``): the fit, the zero-shot
+``fleet_ukf_measurable`` and the UKF; beside them the zero-shot model and the UKF with
+the car's true parameters, which a user without its tyre data does not have. ``--exact``
+adds the yardstick of issue 9: the fit's own recipe (``sideslip-train --init
+fleet_ukf_measurable``, the quick profile's epochs, no mirroring) on the car's exact
+simulation, the UKF run on each bag's true car, scored with the car's true files; ``fit
+/ exact`` then compares what a description gives with what the car's own simulation
+gives.
 ``--zero-shot`` leaves the fit out (minutes instead of an hour): the shipped model and
 the UKF with the described and with the true car's files. ``--identify MINUTES`` adds
 both with the axles identified from that much of the car's own labelled driving
