@@ -83,9 +83,7 @@ def main(argv: list[str] | None = None) -> int:
                                   "--out", str(report), "--force", *files])  # fmt: skip
             if code:
                 return code
-            got = pooled_mae(report, stems)
-            if len(stems) == 1:  # one model: sideslip-evaluate labels it "ARCH [features]..."
-                got = {stems[0] if "[" in k else k: v for k, v in got.items()}
+            got = pooled_mae(report, stems, lone=stems[0] if len(stems) == 1 else None)
             mae.update({f"{k} [{tag}]": v for k, v in got.items()})
         results[name] = mae
         print(name, {k: round(v, 4) for k, v in mae.items() if "β" not in k}, file=sys.stderr)

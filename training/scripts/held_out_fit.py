@@ -111,9 +111,10 @@ def exact_runs(car: VehicleParams, seed: int) -> list[VehicleRun]:
     ]
 
 
-def pooled_mae(report: Path, stems: list[str]) -> dict[str, float]:
+def pooled_mae(report: Path, stems: list[str], lone: str | None = None) -> dict[str, float]:
     """Pooled MAE [deg] per model file stem (sideslip-evaluate names models of the same
-    kind "LABEL (stem)") and per baseline, from a report folder."""
+    kind "LABEL (stem)") and per baseline, from a report folder. A report of one model
+    labels it "ARCH [features]..." without a stem: ``lone`` names it then."""
     summary = json.loads((report / "metrics.json").read_text())
     out = {}
     for r in summary["pooled"]:
@@ -121,6 +122,8 @@ def pooled_mae(report: Path, stems: list[str]) -> dict[str, float]:
             continue
         name = r["estimator"]
         tag = next((s for s in stems if name.endswith(f"({s})")), name)
+        if tag == name and lone is not None and "[" in name:
+            tag = lone
         out[tag] = r["mae"]
     return out
 
@@ -309,9 +312,7 @@ def measurable(args: argparse.Namespace) -> int:
                                   *files])  # fmt: skip
             if code:
                 return code
-            got = pooled_mae(report, ["fit", "exact", SHIPPED_MEASURABLE])
-            # One model in a report: sideslip-evaluate does not add its file's stem.
-            got = {SHIPPED_MEASURABLE if k.startswith("LSTM") else k: v for k, v in got.items()}
+            got = pooled_mae(report, ["fit", "exact", SHIPPED_MEASURABLE], lone=SHIPPED_MEASURABLE)
             mae.update({f"{k} [{tag}]": v for k, v in got.items()})
         results[name] = {"mae_deg": mae, "fit_wall_s": round(fit_s, 1)}
         if exact is not None:
