@@ -124,10 +124,13 @@ def interval_coverage(traces: Sequence[Trace], z: float = Z_95) -> float:
 
 
 def model_label(meta: ModelMetadata) -> str:
-    """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (+ input set when not paper, +
-    the prior it is a residual on)."""
+    """Paper naming: LSTM, PSO-LSTM, BiLSTM, PSO-BiLSTM (×N for N merged networks, +
+    input set when not paper, + the prior it is a residual on)."""
     arch = "LSTM" if meta.architecture == "lstm" else "BiLSTM"
     label = f"PSO-{arch}" if meta.pso else arch
+    merged = meta.provenance.get("merged")
+    if isinstance(merged, list):  # sideslip-merge: the mean of several networks
+        label += f"×{len(merged)}"
     named = [n for n, inputs in INPUT_SETS.items() if tuple(meta.features) == inputs]
     if not named:
         label += f" [{len(meta.features)} inputs]"
