@@ -155,6 +155,16 @@ def test_evaluate_refuses_a_file_that_is_not_a_model(sim_bag_dir, tmp_path, caps
     assert str(bad) in capsys.readouterr().err
 
 
+def test_evaluate_takes_a_shipped_model_by_name_and_names_an_unknown_one(
+    sim_bag_dir, tmp_path, capsys
+):
+    assert evaluate_main(["--model", "fleet_lstm_paper", "--data", str(sim_bag_dir)]) == 0
+    assert "LSTM [paper_kinematic]" in capsys.readouterr().out
+    assert evaluate_main(["--model", "no_such_model", "--data", str(sim_bag_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "--model no_such_model: no such model file" in err and "fleet_lstm_paper" in err
+
+
 def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(
     make_arrays, write_arrays, tmp_path, capsys
 ):

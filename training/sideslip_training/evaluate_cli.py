@@ -20,6 +20,7 @@ from .cli_errors import EXIT_BAD_INPUT, CliError
 from .config import DT_S, WINDOW_STEPS
 from .dataset import DatasetError, load_runs
 from .export import load_model
+from .init_model import InitError, resolve
 from .inputs import add_car_files_arguments
 
 
@@ -37,7 +38,14 @@ def _evaluate_parser() -> argparse.ArgumentParser:
             "the baselines only."
         ),
     )
-    p.add_argument("--model", nargs="*", default=[], type=Path, metavar="FILE")
+    p.add_argument(
+        "--model",
+        nargs="*",
+        default=[],
+        type=Path,
+        metavar="FILE",
+        help="model files (.safetensors) or names of shipped models",
+    )
     p.add_argument("--data", nargs="+", required=True, metavar="DIR")
     p.add_argument("--out", type=Path, help="report folder: table.md, table.csv, figures")
     p.add_argument(
@@ -107,6 +115,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.smoothing < 1:
             raise CliError(f"--smoothing must be >= 1, got {args.smoothing}")
         models = []
+        # A path, or the name of a shipped model (as sideslip-calibrate and --init take).
+        args.model = [resolve(spec, "--model") for spec in args.model]
         for path in args.model:
             net, meta = load_model(path)
             models.append((model_label(meta), net, meta))
@@ -154,7 +164,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "publishes it with outside_fleet auto (a residual on the UKF: the UKF alone)",
                     file=sys.stderr,
                 )
-    except (CliError, ArtifactError, DatasetError, OSError, TopicMapError) as err:
+    except (CliError, ArtifactError, DatasetError, InitError, OSError, TopicMapError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     filters = {

@@ -55,8 +55,9 @@ class InitModel:
         )
 
 
-def resolve(spec: str | Path) -> Path:
-    """A model file: a path, or the name of a model shipped with the estimator."""
+def resolve(spec: str | Path, option: str = "--init") -> Path:
+    """A model file: a path, or the name of a model shipped with the estimator; an
+    :class:`InitError` naming ``option`` (the command-line option it came from) else."""
     path = Path(spec)
     if path.is_file():
         return path
@@ -68,7 +69,7 @@ def resolve(spec: str | Path) -> Path:
     if str(spec) == name and name in shipped:
         return Path(str(folder.joinpath(f"{name}.safetensors")))
     raise InitError(
-        f"--init {spec}: no such model file, nor a shipped model (shipped: {', '.join(shipped)})"
+        f"{option} {spec}: no such model file, nor a shipped model (shipped: {', '.join(shipped)})"
     )
 
 

@@ -64,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise DatasetError(f"--out {args.out} exists; pass --force")
         if args.car == "given" and not (args.vehicle or args.observer_params):
             raise DatasetError("--car given needs --vehicle and/or --observer-params")
-        members = [load_model(resolve(m)) for m in args.models]
+        members = [load_model(resolve(m, "MODEL")) for m in args.models]
         net, meta = merge(members, args.models, args.shares)
         topic_map = TopicMap.load(args.topic_map) if args.topic_map else None
         runs, report = load_runs(args.data, step_s=meta.dt_s, topic_map=topic_map)
