@@ -11,6 +11,9 @@ coverage, coverage per μ third, the share of cars and of car × μ cells (≥ 2
 samples) whose coverage lies in 93-97 %, and the held-back negative log-likelihood.
 
     python training/scripts/interval_terms.py --model fleet_lstm_paper --data data/fleet-val
+
+``--members A B`` (for a ``sideslip-merge`` model) adds terms from how far apart its
+members' estimates are.
 """
 
 from __future__ import annotations
@@ -58,12 +61,23 @@ OBSERVER_SETS = {
         "ayfric2",
     ],
 }
+# For a merged model (sideslip-merge), given its members (--members): how far apart the
+# members' estimates are, at the sample and over the window.
+MEMBER_SETS = {
+    "+ members' spread²": ["1", "1/v2", "ay2", "bdot2", "spread2"],
+    "+ window mean of members' spread²": ["1", "1/v2", "ay2", "bdot2", "spread2w"],
+    "1, 1/v², window mean of members' spread²": ["1", "1/v2", "spread2w"],
+}
 MU_THIRDS = ((0.0, 0.5), (0.5, 0.8), (0.8, 1.01))
 
 
-def samples(model: str, data: str | list[str]) -> dict[str, np.ndarray]:
-    """Per sample with a full window: error [rad], candidate term inputs, run, car, μ."""
+def samples(
+    model: str, data: str | list[str], members: list[str] | None = None
+) -> dict[str, np.ndarray]:
+    """Per sample with a full window: error [rad], candidate term inputs, run, car, μ;
+    with ``members`` also their spread (max − min of their β̂)."""
     net, meta = load_model(resolve(model))
+    member_nets = [load_model(resolve(m)) for m in members or []]
     folders = [data] if isinstance(data, str) else list(data)
     runs, _ = load_runs(folders, step_s=meta.dt_s)
     index = {
@@ -85,6 +99,11 @@ def samples(model: str, data: str | list[str]) -> dict[str, np.ndarray]:
             return (c[w:] - c[:-w]) / w
 
         observed = observer_terms(meta, run, window_mean)
+        if member_nets:
+            each = np.array([predict_run(n, m, run) for n, m in member_nets])
+            spread = np.nan_to_num(each.max(axis=0) - each.min(axis=0))
+            full = np.concatenate([np.zeros(w - 1), spread**2])
+            observed = {**observed, "spread2": spread**2, "spread2w": window_mean(full)}
         entry = index[Path(str(run.bag)).name]
         car = cars.setdefault(entry["vehicle"], len(cars))
         d = {
@@ -173,14 +192,18 @@ def per_car(inside: np.ndarray, d: dict[str, np.ndarray], cars: np.ndarray) -> s
 
 
 def score_other_cars(
-    model: str, fit_data: list[str], score_data: list[str], check: list[str] | None = None
+    model: str,
+    fit_data: list[str],
+    score_data: list[str],
+    check: list[str] | None = None,
+    members: list[str] | None = None,
 ) -> None:
     """Coefficients by likelihood on half of ``fit_data``'s runs, the conformal scale on
     the other half; scored per car × μ cell on ``score_data`` (other cars), and per car
     on ``check``'s cars that ``fit_data`` does not hold (other driving, e.g. fleet-style)."""
-    d = samples(model, fit_data)
-    e = samples(model, score_data)
-    f = samples(model, check) if check else None
+    d = samples(model, fit_data, members)
+    e = samples(model, score_data, members)
+    f = samples(model, check, members) if check else None
     if f is not None:
         seen = set(np.unique(d["vehicle"]))
         f_cars = np.unique(f["car"][~np.isin(f["vehicle"], list(seen))])
@@ -195,7 +218,11 @@ def score_other_cars(
     if f is not None:
         extra = "; check " + per_car(np.abs(f["err"]) <= Z * shipped_sigma(model, f), f, f_cars)
     print(f"{label:40s} pooled {inside.mean():.3f}; cells {n}/{total} {per_mu}{extra}")
-    sets = {**SETS, **(OBSERVER_SETS if "innr2w" in d else {})}
+    sets = {
+        **SETS,
+        **(OBSERVER_SETS if "innr2w" in d else {}),
+        **(MEMBER_SETS if "spread2" in d else {}),
+    }
     for name, keys in sets.items():
         t = np.stack([d[k] for k in keys], axis=1)
         c = fit(t[fit_rows], d["err"][fit_rows] ** 2)
@@ -224,16 +251,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--check", nargs="+", help="with --score: also per car on these bags' other cars"
     )
+    parser.add_argument(
+        "--members", nargs="+", help="a merged model's members: adds their spread as terms"
+    )
     args = parser.parse_args(argv)
     if args.score:
-        score_other_cars(args.model, args.data, args.score, args.check)
+        score_other_cars(args.model, args.data, args.score, args.check, args.members)
         return 0
-    d = samples(args.model, args.data)
+    d = samples(args.model, args.data, args.members)
     runs = d["run"]
     order = np.random.default_rng(0).permutation(np.unique(runs))
     folds = (order[::2], order[1::2])
     print(f"{runs.size} samples, {np.unique(runs).size} runs, {np.unique(d['car']).size} cars")
-    sets = {**SETS, **(OBSERVER_SETS if "innr2w" in d else {})}
+    sets = {
+        **SETS,
+        **(OBSERVER_SETS if "innr2w" in d else {}),
+        **(MEMBER_SETS if "spread2" in d else {}),
+    }
     for name, keys in sets.items():
         t = np.stack([d[k] for k in keys], axis=1)
         inside = np.zeros(runs.size, bool)

@@ -1,0 +1,104 @@
+"""Measurable models against the UKF they are a residual on, per validation car: the choice
+of ``sideslip-merge``'s members, made without the held-out cars.
+
+On ``validation_benchmark.py`` folders (fleet-val cars driven the held-out way, each
+bag's true car), every ``--model`` and the UKF prior of the first one are scored on the
+same samples (where every estimate is finite); per car the pooled MAE [deg] and its ratio
+to the UKF's (issue 8 asks ≤ 0.5 on every car), and pooled over all cars. ``--pairs``
+adds the mean of every two models' β̂ (what ``sideslip-merge`` of that pair gives).
+
+    python training/scripts/merge_validation.py --model fleet_ukf_measurable \
+        fleet_ukf_described --pairs --data data/val-benchmark data/val-benchmark-2 \
+        --out docs/models/fleet_ukf_merged/merge-validation.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from sideslip_training.dataset import load_runs
+from sideslip_training.evaluate import predict_run
+from sideslip_training.export import load_model
+from sideslip_training.init_model import resolve
+from sideslip_training.inputs import InputSpec
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", nargs="+", required=True, help=".safetensors files or names")
+    p.add_argument("--data", nargs="+", required=True, help="validation_benchmark.py folders")
+    p.add_argument("--pairs", action="store_true", help="also the mean of every two models")
+    p.add_argument("--out", type=Path, required=True, help="JSON report")
+    args = p.parse_args(argv)
+    nets = {name: load_model(resolve(name)) for name in args.model}
+    first = next(iter(nets.values()))[1]
+    if first.prior != "ukf":
+        print(f"{args.model[0]}: not a residual on the UKF (prior {first.prior})")
+        return 2
+    runs, _ = load_runs(args.data, step_s=first.dt_s)
+    index = {
+        r["bag"]: r
+        for folder in args.data
+        for r in json.loads((Path(folder) / "index.json").read_text())["runs"]
+    }
+    spec = InputSpec(first.features, first.prior, first.dt_s, None, first.observer)
+    w = first.window_steps
+    errors: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
+    for run in runs:
+        ref = run.samples.beta_rad()[w - 1 :]
+        est = {name: predict_run(net, meta, run) for name, (net, meta) in nets.items()}
+        if args.pairs:
+            for a, b in itertools.combinations(args.model, 2):
+                est[f"mean({a}, {b})"] = (est[a] + est[b]) / 2.0
+        est["UKF"] = spec.prior_rad(run, w)[w - 1 :]
+        ok = np.isfinite(ref) & np.all([np.isfinite(e) for e in est.values()], axis=0)
+        car = index[Path(str(run.bag)).name]["vehicle"]
+        for name, e in est.items():
+            errors[car][name].append(np.abs(e[ok] - ref[ok]))
+    names = list(next(iter(errors.values())))
+    per_car = {
+        car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
+        for car, e in sorted(errors.items())
+    }
+    pooled = {
+        n: float(np.degrees(np.concatenate([x for e in errors.values() for x in e[n]]).mean()))
+        for n in names
+    }
+    ratios = {n: [c[n] / c["UKF"] for c in per_car.values()] for n in names if n != "UKF"}
+    summary = {
+        n: {
+            "pooled_mae_deg": pooled[n],
+            "ratio_to_ukf_mean": float(np.mean(r)),
+            "ratio_to_ukf_worst": float(np.max(r)),
+            "cars_at_most_half_the_ukf": int(np.sum(np.asarray(r) <= 0.5)),
+        }
+        for n, r in ratios.items()
+    }
+    report = {
+        "data": args.data,
+        "cars": len(per_car),
+        "ukf_pooled_mae_deg": pooled["UKF"],
+        "summary": summary,
+        "per_car_mae_deg": per_car,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(report, indent=2) + "\n")
+    print(f"UKF: pooled {pooled['UKF']:.4f} deg over {len(per_car)} cars")
+    for n, s in summary.items():
+        print(
+            f"{n}: pooled {s['pooled_mae_deg']:.4f} deg, per car {s['ratio_to_ukf_mean']:.3f}x "
+            f"the UKF (worst {s['ratio_to_ukf_worst']:.3f}x, "
+            f"{s['cars_at_most_half_the_ukf']} cars <= 0.5x)"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
