@@ -7,6 +7,9 @@ same samples (where every estimate is finite); per car the pooled MAE [deg] and 
 to the UKF's (issue 8 asks ≤ 0.5 on every car), and pooled over all cars. ``--pairs``
 adds the mean of every two models' β̂ (what ``sideslip-merge`` of that pair gives).
 
+For single models (one row each, per car × μ too) ``residual_vs_prior.py`` is the tool;
+this script exists for ``--pairs``, which needs every model's β̂ of a run at once.
+
     python training/scripts/merge_validation.py --model fleet_ukf_measurable \
         fleet_ukf_described --pairs --data data/val-benchmark data/val-benchmark-2 \
         --out docs/models/fleet_ukf_merged/merge-validation.json

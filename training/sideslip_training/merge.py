@@ -133,7 +133,6 @@ def merged_metadata(
     caller scores and calibrates on validation bags)."""
     beta_mean, beta_std = merged_beta(metas, shares)
     digest = hashlib.sha256("\n".join(m.training_data_digest for m in metas).encode()).hexdigest()
-    vehicles = {repr(m.vehicle) for m in metas}
     members = [
         {
             "file": name,
@@ -155,7 +154,7 @@ def merged_metadata(
         metrics={},
         pso=None,
         provenance={"merged": members},
-        vehicle=metas[0].vehicle if len(vehicles) == 1 else None,
+        vehicle=metas[0].vehicle if all(m.vehicle == metas[0].vehicle for m in metas) else None,
         uncertainty=None,
         envelope=merged_envelope(metas),
         created_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
