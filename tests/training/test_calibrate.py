@@ -166,3 +166,41 @@ def test_a_fitted_models_range_survives_recalibration_and_its_flags_span_whole_r
     whole = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[loaded.window_steps - 1 :]
     first = errors.beyond[errors.run == 0]
     assert first.size == whole.size and (first == whole).all()
+
+
+def test_errors_given_by_the_caller_calibrate_as_running_the_model_again(
+    foreign_bags, compact_rwd_description: Path
+) -> None:
+    """sideslip-merge scores its model once and hands the errors to calibrate(): the
+    runs' halves cut from them are what the model run on each half gives, window flags
+    included, and so is the σ."""
+    from dataclasses import replace
+    from importlib import resources
+
+    from sideslip_msgs_py.topic_map import TopicMap
+    from sideslip_msgs_py.uncertainty import FitRange
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_training.calibrate import calibrate
+    from sideslip_training.dataset import load_runs
+    from sideslip_training.export import load_model
+    from sideslip_training.init_model import resolve
+
+    folder, topic_map = foreign_bags
+    ukf = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
+    net, meta = load_model(resolve("fleet_ukf_measurable"))
+    fit = FitRange(2.0, 0.05, 2.5, window_steps=meta.window_steps)
+    unc = replace(Uncertainty.from_dict(meta.uncertainty), fit_range=fit)
+    meta = replace(meta, uncertainty=unc.to_dict())
+    runs, _ = load_runs([folder], step_s=meta.dt_s, topic_map=TopicMap.load(topic_map))
+    car = {
+        "vehicle": VehicleDescription.load(compact_rwd_description),
+        "observer_params_file": str(ukf),
+        "car": "given",
+    }
+    errors = Errors.of_runs(runs, net, meta, **car)
+    subset = [2, 0] if len(runs) > 2 else [1]
+    alone = Errors.of_runs([runs[i] for i in subset], net, meta, **car)
+    cut = errors.select(subset)
+    for name in ("err", "v", "ay", "r", "run", "beyond"):
+        np.testing.assert_array_equal(getattr(cut, name), getattr(alone, name), err_msg=name)
+    assert calibrate(runs, net, meta, car=car, errors=errors) == calibrate(runs, net, meta, car=car)

@@ -103,6 +103,16 @@ class Errors:
         runs = np.zeros(e.size, np.int64) if run is None else np.asarray(run, dtype=np.int64)
         return cls(e, v, ay, r, runs)
 
+    def select(self, indices: Sequence[int]) -> Errors:
+        """The samples of the runs ``indices`` (indices into the runs these errors were
+        made from), in the order given and renumbered 0..: what :meth:`of_runs` gives for
+        that subset of the runs."""
+        rows = [np.flatnonzero(self.run == i) for i in indices]
+        take = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+        run = np.repeat(np.arange(len(rows), dtype=np.int64), [r.size for r in rows])
+        beyond = None if self.beyond is None else self.beyond[take]
+        return Errors(self.err[take], self.v[take], self.ay[take], self.r[take], run, beyond)
+
     def __len__(self) -> int:
         return int(self.err.size)
 
@@ -164,13 +174,23 @@ def calibrate(
     seed: int = 0,  # type: ignore[no-untyped-def]
     scale_only: bool = False,
     car: dict[str, Any] | None = None,
+    errors: Errors | None = None,
 ) -> tuple[Uncertainty, dict[str, float]]:
     """The uncertainty model for ``model`` from validation ``runs`` and its figures.
 
     ``scale_only``: keep the coefficients of the model's own uncertainty (fitted on a
     fleet) and fix only the conformal scale, on all of ``runs`` (one car's recordings:
-    its error level, from minutes of data); ``car``: see :meth:`Errors.of_runs`."""
+    its error level, from minutes of data); ``car``: see :meth:`Errors.of_runs`;
+    ``errors``: the model's errors on ``runs`` (:meth:`Errors.of_runs` with ``car``) when
+    the caller has them already, so that the model is not run over the bags again."""
     car = car or {}
+    position = {id(r): i for i, r in enumerate(runs)}
+
+    def errors_of(subset: Sequence[Run]) -> Errors:
+        if errors is None:
+            return Errors.of_runs(subset, model, meta, **car)
+        return errors.select([position[id(r)] for r in subset])
+
     if scale_only:
         if meta.uncertainty is None:
             raise DatasetError(
@@ -179,13 +199,13 @@ def calibrate(
             )
         coefficients = tuple(Uncertainty.from_dict(meta.uncertainty).coefficients)
         fit_runs, scale_runs = list(runs), list(runs)
-        fit_errors = scale_errors = Errors.of_runs(runs, model, meta, **car)
+        fit_errors = scale_errors = errors_of(runs)
         if len(scale_errors) < 100:
             raise DatasetError("too few scored samples to calibrate (fewer than 100)")
     else:
         fit_runs, scale_runs = split_runs(runs, 0.5, seed)
-        fit_errors = Errors.of_runs(fit_runs, model, meta, **car)
-        scale_errors = Errors.of_runs(scale_runs, model, meta, **car)
+        fit_errors = errors_of(fit_runs)
+        scale_errors = errors_of(scale_runs)
         if len(fit_errors) < 100 or len(scale_errors) < 100:
             raise DatasetError("too few scored samples to calibrate (fewer than 100 per half)")
         coefficients = fit_coefficients(fit_errors)

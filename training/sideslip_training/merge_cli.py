@@ -77,8 +77,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         scores = {}
         for name, (m_net, m_meta) in zip(args.models, members, strict=True):
             scores[name] = _mae_rmse_me(Errors.of_runs(runs, m_net, m_meta, **car))
-        mae, rmse, me = _mae_rmse_me(Errors.of_runs(runs, net, meta, **car))
-        unc, figures = calibrate(runs, net, meta, coverage=args.coverage, seed=args.seed, car=car)
+        errors = Errors.of_runs(runs, net, meta, **car)
+        mae, rmse, me = _mae_rmse_me(errors)
+        unc, figures = calibrate(
+            runs, net, meta, coverage=args.coverage, seed=args.seed, car=car, errors=errors
+        )
     except (
         DatasetError,
         ArtifactError,
