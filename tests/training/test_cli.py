@@ -165,6 +165,22 @@ def test_evaluate_takes_a_shipped_model_by_name_and_names_an_unknown_one(
     assert "--model no_such_model: no such model file" in err and "fleet_lstm_paper" in err
 
 
+def test_the_evaluation_report_says_which_row_is_which_model_file(sim_bag_dir, tmp_path):
+    """Labels carry a file's stem only where two would collide, so scripts find a
+    model's row through metrics.json's model_estimators."""
+    from sideslip_training.init_model import resolve
+
+    out = tmp_path / "report"
+    names = ["fleet_lstm_paper", "pso_lstm_paper"]
+    args = ["--model", *names, "--data", str(sim_bag_dir), "--out", str(out)]
+    assert evaluate_main(args) == 0
+    summary = json.loads((out / "metrics.json").read_text())
+    rows = {r["estimator"] for r in summary["pooled"]}
+    labels = summary["model_estimators"]
+    assert set(labels) == {str(resolve(n)) for n in names}
+    assert set(labels.values()) <= rows and len(set(labels.values())) == 2
+
+
 def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(
     make_arrays, write_arrays, tmp_path, capsys
 ):

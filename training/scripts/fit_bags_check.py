@@ -66,6 +66,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fit-args", default="", help="more sideslip-fit options")
     p.add_argument("--held-out", action="store_true", help="the six held-out cars (see above)")
     p.add_argument("--own-peak-ay", type=float, default=None, help="keep gentle own runs only")
+    p.add_argument(
+        "--start",
+        default="fleet_ukf_measurable",
+        help="the model sideslip-fit fine-tunes (--init) and the zero-shot one scored beside it",
+    )
     args = p.parse_args(argv)
     if args.held_out:
         cars = list(held_out_vehicles().values())
@@ -95,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         if not out.exists():
             code = fit_main(["--vehicle", str(desc), "--bags", str(own), "--features",
                              "measurable", "--out", str(out), "--quiet",
-                             *args.fit_args.split()])  # fmt: skip
+                             "--init", args.start, *args.fit_args.split()])  # fmt: skip
             if code != 0:
                 return code
         seconds = time.perf_counter() - started
@@ -108,12 +113,16 @@ def main(argv: list[str] | None = None) -> int:
         for tag, ukf_params in (("identified", ukf), ("described", described)):
             report = work / f"new-drives-{tag}"
             code = evaluate_main(
-                ["--model", str(out), str(resolve("fleet_ukf_measurable")), "--data", *val_bags,
+                ["--model", str(out), str(resolve(args.start)), "--data", *val_bags,
                  "--out", str(report), "--force", "--ukf-params", str(ukf_params), *files]
             )  # fmt: skip
             if code != 0:
                 return code
             scores[tag] = pooled(report)
+            rows = json.loads((report / "metrics.json").read_text())["model_estimators"]
+            # One name per model whatever the labels: the fit and its start.
+            for name, path in (("fitted", out), ("start", resolve(args.start))):
+                scores[tag][f"model: {name}"] = scores[tag][rows[str(path)]]
         new = scores["identified"]
         results[car.name] = {
             "seconds": seconds,
@@ -121,13 +130,14 @@ def main(argv: list[str] | None = None) -> int:
             "new_drives": {**new, "UKF (described axles)": scores["described"]["UKF"]},
         }
     (args.out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
-    print("| car | where | fitted | shipped | UKF identified | UKF described |")
+    start = resolve(args.start).stem
+    print(f"| car | where | fitted | {start} | UKF identified | UKF described |")
     print("|---|---|---|---|---|---|")
     for name, r in results.items():
         for where in ("card", "new_drives"):
             m = r[where]
-            fitted = next(v for k, v in m.items() if k.endswith("(fitted)"))
-            shipped = next(v for k, v in m.items() if k.endswith("(fleet_ukf_measurable)"))
+            fitted = m.get("model: fitted") or next(v for k, v in m.items() if "(fitted)" in k)
+            shipped = m.get("model: start") or next(v for k, v in m.items() if f"({start})" in k)
             ident = m.get("UKF (identified axles)", m.get("UKF"))
             print(f"| {name} | {where} | {fitted:.4f} | {shipped:.4f} | {ident:.4f} | "
                   f"{m['UKF (described axles)']:.4f} |")  # fmt: skip

@@ -18,6 +18,12 @@ units, ``measurable_observer_signals``, ``--prior ukf``). ``--train-args`` are a
 both trainings (e.g. ``--stride 10 --mirror no`` for a quicker comparison than the
 small-data defaults).
 
+``--start`` fine-tunes another model than the base's shipped one (a shipped name or a
+file with the base's inputs and prior, e.g. ``fleet_ukf_merged``); it is the zero-shot
+model then too. ``--no-scratch`` leaves the scratch training out (it does not depend on
+the start: the same data, seeds and recipe give the same network), so ``curve.json``
+has no scratch figure.
+
 ``--finetune-args`` are added to the fine-tuning only (``--interpolate 0.5``, as
 ``sideslip-fit --bags`` fine-tunes).
 
@@ -98,6 +104,12 @@ def pooled_mae(report: Path) -> dict[str, float]:
     return {r["estimator"]: r["mae"] for r in summary["pooled"] if r["mae"] is not None}
 
 
+def model_mae(report: Path, model: Path) -> float:
+    """Pooled MAE [deg] of the model file ``model`` in a sideslip-evaluate report."""
+    label = json.loads((report / "metrics.json").read_text())["model_estimators"][str(model)]
+    return pooled_mae(report)[label]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--car", default="heldout_sports_rwd")
@@ -118,9 +130,12 @@ def main(argv: list[str] | None = None) -> int:
         help="more sideslip-evaluate options (e.g. the car files the trainings were given: "
         "--vehicle D --observer-params F --car given --ukf-params F)",
     )
+    p.add_argument("--start", default=None, help="the model to fine-tune (default: the base's)")
+    p.add_argument("--no-scratch", action="store_true", help="no training from scratch")
     p.add_argument("--tag", default="", help="suffix of the work folder (CAR-BASE-TAG)")
     args = p.parse_args(argv)
     shipped, scratch_model = BASES[args.base]
+    start = resolve(args.start or shipped, "--start")
     work = args.out / args.car if args.base == "paper" else args.out / f"{args.car}-{args.base}"
     if args.tag:
         work = work.with_name(f"{work.name}-{args.tag}")
@@ -144,8 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         names = first_minutes(runs, minutes)
         subset = [str(data / n) for n in names]
         models = {}
-        fine_tune = ["--init", shipped, *args.finetune_args.split()]
-        for kind, extra in (("finetuned", fine_tune), ("scratch", scratch_model)):
+        fine_tune = ["--init", str(start), *args.finetune_args.split()]
+        kinds = [("finetuned", fine_tune)] + [("scratch", scratch_model)] * (not args.no_scratch)
+        for kind, extra in kinds:
             out = work / f"{kind}_{minutes:g}min.safetensors"
             if not out.exists():
                 code = train_main(
@@ -155,21 +171,17 @@ def main(argv: list[str] | None = None) -> int:
                     return code
             models[kind] = out
         report = work / f"report_{minutes:g}min"
-        code = evaluate_main(["--model", str(models["finetuned"]), str(models["scratch"]),
-                              str(resolve(shipped)), "--data", *bags, "--out", str(report),
-                              "--force", *args.eval_args.split()])  # fmt: skip
+        code = evaluate_main(["--model", *(str(m) for m in models.values()), str(start),
+                              "--data", *bags, "--out", str(report), "--force",
+                              *args.eval_args.split()])  # fmt: skip
         if code:
             return code
-        mae = pooled_mae(report)
-        by_stem = {
-            stem: next(v for k, v in mae.items() if k.endswith(f"({stem})"))
-            for stem in (models["finetuned"].stem, models["scratch"].stem, shipped)
-        }
         curve[f"{minutes:g}"] = {
             "runs": len(names),
-            "finetuned": by_stem[models["finetuned"].stem],
-            "scratch": by_stem[models["scratch"].stem],
-            "zero_shot": by_stem[shipped],
+            "start": start.stem,
+            "finetuned": model_mae(report, models["finetuned"]),
+            "scratch": model_mae(report, models["scratch"]) if "scratch" in models else None,
+            "zero_shot": model_mae(report, start),
         }
         print(f"{args.car} {minutes:g} min: {curve[f'{minutes:g}']}", file=sys.stderr)
     done = work / "curve.json"
@@ -180,10 +192,11 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["| minutes | runs | fine-tuned | scratch | zero-shot | fine-tuned vs scratch |",
              "|---|---|---|---|---|---|"]  # fmt: skip
     for m, c in curve.items():
-        gain = 1.0 - c["finetuned"] / c["scratch"]
+        scratch = "—" if c["scratch"] is None else f"{c['scratch']:.4f}"
+        gain = "—" if c["scratch"] is None else f"{1.0 - c['finetuned'] / c['scratch']:+.0%}"
         lines.append(
-            f"| {m} | {c['runs']} | {c['finetuned']:.4f} | {c['scratch']:.4f} | "
-            f"{c['zero_shot']:.4f} | {gain:+.0%} |"
+            f"| {m} | {c['runs']} | {c['finetuned']:.4f} | {scratch} | "
+            f"{c['zero_shot']:.4f} | {gain} |"
         )
     (work / "curve.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -203,6 +203,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         summary = {
             "models": [str(p) for p in args.model],
+            # Which estimator row is which file: a label carries the file's stem only
+            # where two models' labels would collide.
+            "model_estimators": {
+                str(p): name for p, (name, _, _) in zip(args.model, models, strict=True)
+            },
             "data": args.data,
             "smoothing_steps": args.smoothing,
             "filters": filters,
