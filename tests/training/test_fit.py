@@ -108,11 +108,12 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
 
 
 def test_a_description_alone_starts_from_the_model_trained_on_described_cars_too() -> None:
-    # Recordings identify the axles (a nearly right filter): the model trained on true
-    # files. A description alone leaves the filter's tyres typical: the model that saw
-    # described cars' filters in training, with the same inputs.
+    # Recordings identify the axles (a nearly right filter): the mean of the models
+    # trained on true files and on true and described ones. A description alone leaves
+    # the filter's tyres typical: the model that saw described cars' filters in
+    # training, with the same inputs.
     assert default_start("measurable", bags=False) == "fleet_ukf_described"
-    assert default_start("measurable", bags=True) == "fleet_ukf_measurable"
+    assert default_start("measurable", bags=True) == "fleet_ukf_merged"
     assert default_start("paper", bags=False) == default_start("paper", bags=True)
     described = read_artifact(resolve("fleet_ukf_described"))[1]
     measurable = read_artifact(resolve("fleet_ukf_measurable"))[1]

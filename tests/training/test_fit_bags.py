@@ -41,7 +41,7 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
     card = out.with_suffix(".md").read_text()
     deploy = f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}"
     rows = ("UKF (described axles)", "UKF (identified axles)", "β = 0", "(my_car)")
-    for text in (*rows, "(fleet_ukf_measurable)", deploy):
+    for text in (*rows, "(fleet_ukf_merged)", deploy):
         assert text in card
     # The kinematic baselines read the reference velocity: not a sensor of this car.
     assert "Kinematic" not in card
@@ -73,7 +73,7 @@ def test_the_fitted_model_publishes_a_calibrated_sigma_and_the_card_says_how_it_
 
     _, out = fitted
     mine = read_artifact(out)[1]
-    shipped = read_artifact(resolve("fleet_ukf_measurable"))[1]
+    shipped = read_artifact(resolve("fleet_ukf_merged"))[1]
     assert mine.uncertainty is not None
     assert mine.uncertainty["coefficients"] == shipped.uncertainty["coefficients"]
     assert mine.metrics["interval_calibration"]["scale_only"] == 1.0
@@ -175,7 +175,7 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
         (["--test-bags", "{tmp}/nothing"], "nothing"),
         (["--test-bags", "{short}"], "holds no stretch of a full 100-sample window"),
         (
-            ["--features", "measurable", "--out", "{tmp}/fleet_ukf_measurable.safetensors"],
+            ["--features", "measurable", "--out", "{tmp}/fleet_ukf_merged.safetensors"],
             "name the fitted model other",
         ),
     ],
