@@ -45,10 +45,10 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
         assert text in card
     # The kinematic baselines read the reference velocity: not a sensor of this car.
     assert "Kinematic" not in card
-    # Half way back to the start model's weights by default (what that does to the
-    # weights: test_cli's interpolation test; these 2 epochs keep the start's).
+    # A quarter of the way from the merged start's weights by default (what that does
+    # to the weights: test_cli's interpolation test; these 2 epochs keep the start's).
     config = json.loads((out.with_suffix(".fit") / "train-run" / "config.json").read_text())
-    assert config["args"]["interpolate"] == 0.5
+    assert config["args"]["interpolate"] == 0.25
 
 
 def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(fitted):
@@ -150,6 +150,7 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     assert main([*args, "--quiet"]) == 0, capsys.readouterr().err
     config = json.loads((tmp_path / "paper.fit" / "train-run" / "config.json").read_text())
     assert config["args"]["learning_rate"] == 0.0005 and config["args"]["test_fraction"] == 0.25
+    assert config["args"]["interpolate"] == 0.5  # fleet_lstm_paper's share
     assert len(config["rehearsal_bags"]) == 2
     assert all("_rehearsal" in b for b in config["rehearsal_bags"])
     assert not any("_rehearsal" in b for b in config["val_bags"] + config["test_bags"])
@@ -160,6 +161,18 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     assert "UKF" not in card
     assert main([*args, "--force"]) == 0
     assert "rehearsal: 2 runs already simulated (reused)" in capsys.readouterr().err
+
+
+def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tmp_path):
+    import argparse
+
+    from sideslip_training.fit_bags_args import DEFAULT_INTERPOLATION, interpolation
+
+    given = argparse.Namespace(interpolate=None)
+    assert interpolation(given, "fleet_ukf_merged") == 0.25
+    assert interpolation(given, str(tmp_path / "fleet_ukf_merged.safetensors")) == 0.25
+    assert interpolation(given, "fleet_ukf_measurable") == DEFAULT_INTERPOLATION == 0.5
+    assert interpolation(argparse.Namespace(interpolate=0.8), "fleet_ukf_merged") == 0.8
 
 
 @pytest.mark.parametrize(

@@ -227,7 +227,7 @@ def run(
         train += ["--topic-map", str(args.topic_map)] if args.topic_map else []
         train += ["--max-epochs", str(args.max_epochs)] if args.max_epochs else []
         train += ["--learning-rate", repr(args.learning_rate)] if args.learning_rate else []
-        train += ["--interpolate", repr(interpolation(args))]
+        train += ["--interpolate", repr(interpolation(args, shipped))]
         train += ["--quiet"] if args.quiet else []
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
@@ -302,9 +302,10 @@ def run(
         if rehearsal_runs(args)
         else ""
     )
-    if interpolation(args) < 1.0 and not train_metrics.get("kept_start_weights"):
+    alpha = interpolation(args, shipped)
+    if alpha < 1.0 and not train_metrics.get("kept_start_weights"):
         summary_text += (
-            f"; the weights kept {interpolation(args):g} of the way from the start model's "
+            f"; the weights kept {alpha:g} of the way from the start model's "
             "to the fine-tuned ones (`--interpolate`)"
         )
     card = model_card(args, summary_text, fraction, found, test_part, new_drives,

@@ -20,8 +20,14 @@ DEFAULT_REHEARSAL_RUNS: Final = 0
 (``--rehearse``)."""
 DEFAULT_INTERPOLATION: Final = 0.5
 """The fitted weights kept half way from the start model's (``sideslip-train
---interpolate``): chosen on validation cars' other drives (docs/evaluation/fit-bags,
-"Half way back to the start")."""
+--interpolate``): chosen on validation cars' other drives with ``fleet_ukf_measurable``
+(O5U) as the start (docs/evaluation/fit-bags, "Half way back to the start")."""
+START_INTERPOLATION: Final = {"fleet_ukf_merged": 0.25}
+"""Starts with a share of their own, chosen for that start on validation cars' other
+drives. ``fleet_ukf_merged``, fitted to 5 minutes of 8 validation cars' driving, scored on
+their 18 benchmark drives each: α 0.25 0.0290°, 0.5 0.0307°, the start alone 0.0301°
+(0.25 better than 0.5 on 6 of 8; docs/models/fleet_ukf_merged/finetune-alpha-validation.json).
+A better start needs less of the recordings' pull."""
 
 
 @dataclass(frozen=True)
@@ -92,8 +98,10 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         metavar="ALPHA",
         default=None,
         help="with --bags: keep the start model's weights moved this share of the way to "
-        f"the fine-tuned ones (default {DEFAULT_INTERPOLATION:g}: better on other drives "
-        "than the plain fine-tuning (1) and the start (0) on validation cars; "
+        "the fine-tuned ones (default "
+        + ", ".join(f"{a:g} from {name}" for name, a in START_INTERPOLATION.items())
+        + f", {DEFAULT_INTERPOLATION:g} from other starts: better on other drives than the "
+        "plain fine-tuning (1) and the start (0) on validation cars; "
         "docs/evaluation/fit-bags)",
     )
     p.add_argument(
@@ -129,9 +137,13 @@ def check_bag_arguments(args: argparse.Namespace) -> float:
     return fraction
 
 
-def interpolation(args: argparse.Namespace) -> float:
-    """``--interpolate``'s share, or the default."""
-    return DEFAULT_INTERPOLATION if args.interpolate is None else float(args.interpolate)
+def interpolation(args: argparse.Namespace, start: str) -> float:
+    """``--interpolate``'s share, or the default for the ``start`` model (a shipped name
+    or a file)."""
+    if args.interpolate is not None:
+        return float(args.interpolate)
+    name = Path(start).name.removesuffix(".safetensors")
+    return START_INTERPOLATION.get(name, DEFAULT_INTERPOLATION)
 
 
 def rehearsal_runs(args: argparse.Namespace) -> int:

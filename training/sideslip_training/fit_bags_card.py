@@ -249,8 +249,9 @@ OWN_DRIVES_CAUTION = (
     "On six simulated held-out cars, plain fits from the shipped start beat it on their own "
     "test part (0.053° against 0.060°) but not on other drives of the cars (0.031° against "
     "the shipped model's 0.028° with the identified `ukf` file); kept half way from the "
-    "start (`--interpolate 0.5`, the default now) they beat it there by 6 % (0.0265°, "
-    "worse on 1 of 6): before deploying, compare both on a recording the fit never saw. "
+    "start (`--interpolate 0.5`) they beat it there by 6 % (0.0265°, worse on 1 of 6); from "
+    "`fleet_ukf_merged` with 5 minutes of driving (`--interpolate 0.5`) by 4 %, worse on 2 "
+    "of 6: before deploying, compare both on a recording the fit never saw. "
 )
 
 
