@@ -179,6 +179,7 @@ def test_the_evaluation_report_says_which_row_is_which_model_file(sim_bag_dir, t
     labels = summary["model_estimators"]
     assert set(labels) == {str(resolve(n)) for n in names}
     assert set(labels.values()) <= rows and len(set(labels.values())) == 2
+    assert evaluate_main(["--model", names[0], names[0], "--data", str(sim_bag_dir)]) == 2
 
 
 def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(

@@ -50,20 +50,34 @@ def pick(by_est: dict[str, dict[str, float]], suffix: str) -> dict[str, float]:
     return next(v for k, v in by_est.items() if k.endswith(suffix))
 
 
+def roles(report: Path) -> tuple[str, str]:
+    """The rows of the fitted model and of the start it came from (fit_bags_check.py
+    scores them in that order): by file where the report maps files to rows, else by
+    the stems the labels of two equally named networks carry."""
+    summary = json.loads((report / "metrics.json").read_text())
+    rows = summary.get("model_estimators")
+    if rows is None:  # reports from before the map
+        return FITTED, SHIPPED
+    fitted, start = summary["models"]
+    return rows[fitted], rows[start]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cars", type=Path, nargs="+", required=True, help="car folders")
     p.add_argument("--report", default="new-drives-identified", help="report folder in each")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    table = {w.name: cells(w / args.report) for w in sorted(args.cars)}
+    folders = {w.name: w for w in sorted(args.cars)}
+    table = {name: cells(w / args.report) for name, w in folders.items()}
     args.out.write_text(json.dumps(table, indent=1, ensure_ascii=False) + "\n")
     print("| car | μ | fitted MAE | shipped MAE | UKF (identified) MAE | fitted inside ±1.96 σ "
           "| shipped inside ±1.96 σ |\n|---|---|---|---|---|---|---|")  # fmt: skip
     inside: dict[str, list[float]] = {"fitted": [], "shipped": []}
     for car, by_mu in table.items():
         for mu, by_est in by_mu.items():
-            f, s, u = pick(by_est, FITTED), pick(by_est, SHIPPED), by_est["UKF"]
+            fitted, start = roles(folders[car] / args.report)
+            f, s, u = pick(by_est, fitted), pick(by_est, start), by_est["UKF"]
             inside["fitted"].append(f["coverage_95"])
             inside["shipped"].append(s["coverage_95"])
             maes = " | ".join(f"{x['mae_deg']:.4f}" for x in (f, s, u))

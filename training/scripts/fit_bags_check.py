@@ -39,11 +39,12 @@ from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.evaluate_cli import main as evaluate_main
+from sideslip_training.fit import default_start
 from sideslip_training.fit import main as fit_main
 from sideslip_training.init_model import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
-from held_out_curve import first_minutes, own_runs
+from held_out_curve import first_minutes, made_from, own_runs
 from held_out_fit import description
 
 VAL_SEED = 2
@@ -68,8 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--own-peak-ay", type=float, default=None, help="keep gentle own runs only")
     p.add_argument(
         "--start",
-        default="fleet_ukf_measurable",
-        help="the model sideslip-fit fine-tunes (--init) and the zero-shot one scored beside it",
+        default=default_start("measurable", bags=True),
+        help="the model sideslip-fit fine-tunes (--init; default sideslip-fit's own) and the "
+        "zero-shot one scored beside it",
     )
     args = p.parse_args(argv)
     if args.held_out:
@@ -97,6 +99,9 @@ def main(argv: list[str] | None = None) -> int:
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
         out = work / "fitted.safetensors"
         started = time.perf_counter()
+        if out.exists() and made_from(out) != resolve(args.start).name:
+            print(f"{out} was fitted from {made_from(out)}, not {args.start}: use another --out")
+            return 2
         if not out.exists():
             code = fit_main(["--vehicle", str(desc), "--bags", str(own), "--features",
                              "measurable", "--out", str(out), "--quiet",

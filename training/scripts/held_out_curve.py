@@ -87,6 +87,13 @@ def own_runs(car: VehicleParams, minutes: float, seed: int) -> list[VehicleRun]:
     ]
 
 
+def made_from(model: Path) -> str:
+    """The file name of the model ``model`` was fine-tuned from ("" if from scratch)."""
+    from sideslip_msgs_py.artifact import read_artifact
+
+    return str(read_artifact(model)[1].provenance.get("init") or "")
+
+
 def first_minutes(runs: list[VehicleRun], minutes: float) -> list[str]:
     """Names of the first runs whose durations add up to ``minutes``."""
     out, total = [], 0.0
@@ -163,6 +170,9 @@ def main(argv: list[str] | None = None) -> int:
         kinds = [("finetuned", fine_tune)] + [("scratch", scratch_model)] * (not args.no_scratch)
         for kind, extra in kinds:
             out = work / f"{kind}_{minutes:g}min.safetensors"
+            if out.exists() and kind == "finetuned" and made_from(out) != start.name:
+                print(f"{out} was fine-tuned from {made_from(out)}, not {start.name}: use --tag")
+                return 2
             if not out.exists():
                 code = train_main(
                     ["--data", *subset, "--out", str(out), "--force", *extra, *common]

@@ -3,7 +3,8 @@ scored on the held-out car's 18 benchmark runs, without training again.
 
 ``sideslip-train --interpolate α`` writes θ₀ + α (θ_ft − θ₀) (θ₀ the ``--init`` start,
 θ_ft the best epoch's weights; the epoch is chosen before the interpolation). The model
-written with α_w therefore gives any α ≤ α_w exactly, as θ₀ + (α / α_w)(θ_w − θ₀);
+written with α_w therefore gives any α ≤ α_w, as θ₀ + (α / α_w)(θ_w − θ₀) (exact
+but for float32 rounding, ~1e-7);
 a training that kept the start (best epoch 0) is the start at every α. Used for the
 share chosen on validation cars after the held-out six had been scored with another
 (``fit_interpolation.py`` chose it; this only scores it).

@@ -124,6 +124,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if len(set(names)) != len(names):  # two LSTMs: tell them apart by file
             stems = [p.stem for p in args.model]
             tags = stems if len(set(stems)) == len(stems) else [p.parent.name for p in args.model]
+            if len(set(tags)) != len(tags):  # same stems in same-named folders
+                tags = [str(p) for p in args.model]
+            if len(set(tags)) != len(tags):
+                raise CliError("--model names one file twice")
             models = [
                 (f"{n} ({tag})", net, meta)
                 for (n, net, meta), tag in zip(models, tags, strict=True)
