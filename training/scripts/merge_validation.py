@@ -5,7 +5,10 @@ On ``validation_benchmark.py`` folders (fleet-val cars driven the held-out way, 
 bag's true car), every ``--model`` and the UKF prior of the first one are scored on the
 same samples (where every estimate is finite); per car the pooled MAE [deg] and its ratio
 to the UKF's (issue 8 asks ≤ 0.5 on every car), and pooled over all cars. ``--pairs``
-adds the mean of every two models' β̂ (what ``sideslip-merge`` of that pair gives).
+adds the mean of every two models' β̂ (what ``sideslip-merge`` of that pair gives),
+``--subsets`` the mean of every two or more. ``--cache DIR`` keeps each model's β̂ per run
+(keyed by the model file's SHA-256), so a new member is scored against the old ones
+without running them again.
 
 For single models (one row each, per car × μ too) ``residual_vs_prior.py`` is the tool;
 this script exists for ``--pairs``, which needs every model's β̂ of a run at once.
@@ -18,6 +21,7 @@ this script exists for ``--pairs``, which needs every model's β̂ of a run at o
 from __future__ import annotations
 
 import argparse
+import hashlib
 import itertools
 import json
 import sys
@@ -38,9 +42,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", nargs="+", required=True, help=".safetensors files or names")
     p.add_argument("--data", nargs="+", required=True, help="validation_benchmark.py folders")
     p.add_argument("--pairs", action="store_true", help="also the mean of every two models")
+    p.add_argument(
+        "--subsets", action="store_true", help="also the mean of every two or more models"
+    )
+    p.add_argument(
+        "--cache",
+        type=Path,
+        help="folder for each model's estimates per run, reused when the model file is the same",
+    )
     p.add_argument("--out", type=Path, required=True, help="JSON report")
     args = p.parse_args(argv)
     nets = {name: load_model(resolve(name)) for name in args.model}
+    cached = {name: _cached(args.cache, resolve(name)) for name in args.model}
     first = next(iter(nets.values()))[1]
     if first.prior != "ukf":
         print(f"{args.model[0]}: not a residual on the UKF (prior {first.prior})")
@@ -56,15 +69,28 @@ def main(argv: list[str] | None = None) -> int:
     errors: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
         ref = run.samples.beta_rad()[w - 1 :]
-        est = {name: predict_run(net, meta, run) for name, (net, meta) in nets.items()}
-        if args.pairs:
-            for a, b in itertools.combinations(args.model, 2):
-                est[f"mean({a}, {b})"] = (est[a] + est[b]) / 2.0
+        bag = Path(str(run.bag)).name
+        est = {}
+        for name, (net, meta) in nets.items():
+            store = cached[name]
+            if store is not None and bag in store:
+                est[name] = store[bag]
+            else:
+                est[name] = predict_run(net, meta, run)
+                if store is not None:
+                    store[bag] = est[name]
+        sizes = range(2, len(args.model) + 1) if args.subsets else [2] if args.pairs else []
+        for k in sizes:
+            for group in itertools.combinations(args.model, k):
+                est[f"mean({', '.join(group)})"] = np.mean([est[g] for g in group], axis=0)
         est["UKF"] = spec.prior_rad(run, w)[w - 1 :]
         ok = np.isfinite(ref) & np.all([np.isfinite(e) for e in est.values()], axis=0)
         car = index[Path(str(run.bag)).name]["vehicle"]
         for name, e in est.items():
             errors[car][name].append(np.abs(e[ok] - ref[ok]))
+    for name, store in cached.items():
+        if store is not None:
+            np.savez(_cache_file(args.cache, resolve(name)), **store)
     names = list(next(iter(errors.values())))
     per_car = {
         car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
@@ -101,6 +127,23 @@ def main(argv: list[str] | None = None) -> int:
             f"{s['cars_at_most_half_the_ukf']} cars <= 0.5x)"
         )
     return 0
+
+
+def _cache_file(folder: Path, model: Path) -> Path:
+    return folder / f"{hashlib.sha256(model.read_bytes()).hexdigest()[:16]}.npz"
+
+
+def _cached(folder: Path | None, model: Path) -> dict[str, np.ndarray] | None:
+    """The model's estimates per bag name kept in ``folder`` (empty when none yet); None
+    without a cache. Keyed by the file's bytes, so a retrained model never reuses them."""
+    if folder is None:
+        return None
+    folder.mkdir(parents=True, exist_ok=True)
+    path = _cache_file(folder, model)
+    if not path.is_file():
+        return {}
+    with np.load(path) as kept:
+        return {bag: kept[bag] for bag in kept.files}
 
 
 if __name__ == "__main__":

@@ -11,7 +11,8 @@ Per sample: the model's inputs, z-scored in float64 and rounded to float32, go t
 the LSTM; the head reads its output at the window's last step (the paper's Fig. 5) and
 β̂ [rad] = y · beta_std + beta_mean (+ the prior). Three engines compute the same thing:
 
-* ``numba`` (default) and ``numpy``: :class:`~sideslip_estimator.streaming.StreamingLstm`.
+* ``numba`` (default) and ``numpy``: :class:`~sideslip_estimator.streaming.StreamingLstm`
+  (per member for a merged model: :mod:`~sideslip_estimator.streaming_members`).
   Every window in flight reads the same new sample, so each call pushes the newest row
   once and all windows advance with one batched LSTM step; the oldest one is complete
   and is the estimate. ``numba`` runs that step as one compiled float32 call per layer
@@ -95,7 +96,7 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription
 from ..inputs import X_V as _X_V
 from ..inputs import Y_A as _Y_A
 from ..inputs import YAW_RATE as _YAW_RATE
-from ..streaming import StreamingLstm
+from ..streaming_members import streaming_engine
 from .base import BackendError, Estimate, parameter_values
 from .model_context import fleet_check, observer_for, vehicle_for
 from .model_files import (
@@ -262,7 +263,7 @@ class PsoLstmBackend:
             raise BackendError(f"pso_lstm.engine must be one of {ENGINES}, got {engine!r}")
         if engine == "numba" and not _numba_available():
             engine = "numpy"
-        self._stream = StreamingLstm(
+        self._stream = streaming_engine(
             tensors, meta, kernel="numba" if engine == "numba" else "numpy"
         )
         if engine != "torch" and self._stream.per_window_recurrences > 0:
