@@ -209,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
             SHIPPED_DIR / "fleet_ukf_paper.safetensors",
             SHIPPED_DIR / "fleet_ukf_measurable.safetensors",
             SHIPPED_DIR / "fleet_ukf_merged.safetensors",
+            SHIPPED_DIR / "fleet_ukf_ensemble.safetensors",
         ],
         help="exported models to time as well (default: the shipped ones)",
     )
