@@ -47,6 +47,8 @@ def unit_groups(tensors: Mapping[str, np.ndarray], meta: ModelMetadata) -> list[
             weights = np.asarray(tensors[name]).reshape(4, h, h)
             coupled |= np.any(weights != 0.0, axis=0)
     coupled |= coupled.T
+    # Connected components by a plain search: scipy's csgraph would do it, but scipy is
+    # only in the ukf extra, and the pso_lstm back-end must not need it.
     group = np.full(h, -1)
     for seed in range(h):
         if group[seed] >= 0:

@@ -75,8 +75,8 @@ def main(argv: list[str] | None = None) -> int:
           "| shipped inside ±1.96 σ |\n|---|---|---|---|---|---|---|")  # fmt: skip
     inside: dict[str, list[float]] = {"fitted": [], "shipped": []}
     for car, by_mu in table.items():
+        fitted, start = roles(folders[car] / args.report)
         for mu, by_est in by_mu.items():
-            fitted, start = roles(folders[car] / args.report)
             f, s, u = pick(by_est, fitted), pick(by_est, start), by_est["UKF"]
             inside["fitted"].append(f["coverage_95"])
             inside["shipped"].append(s["coverage_95"])

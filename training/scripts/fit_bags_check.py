@@ -99,8 +99,9 @@ def main(argv: list[str] | None = None) -> int:
         desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
         out = work / "fitted.safetensors"
         started = time.perf_counter()
-        if out.exists() and made_from(out) != resolve(args.start).name:
-            print(f"{out} was fitted from {made_from(out)}, not {args.start}: use another --out")
+        origin = made_from(out) if out.exists() else None
+        if origin is not None and origin != resolve(args.start).name:
+            print(f"{out} was fitted from {origin}, not {args.start}: use another --out")
             return 2
         if not out.exists():
             code = fit_main(["--vehicle", str(desc), "--bags", str(own), "--features",

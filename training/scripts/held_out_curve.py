@@ -170,8 +170,9 @@ def main(argv: list[str] | None = None) -> int:
         kinds = [("finetuned", fine_tune)] + [("scratch", scratch_model)] * (not args.no_scratch)
         for kind, extra in kinds:
             out = work / f"{kind}_{minutes:g}min.safetensors"
-            if out.exists() and kind == "finetuned" and made_from(out) != start.name:
-                print(f"{out} was fine-tuned from {made_from(out)}, not {start.name}: use --tag")
+            origin = made_from(out) if out.exists() and kind == "finetuned" else None
+            if origin is not None and origin != start.name:
+                print(f"{out} was fine-tuned from {origin}, not {start.name}: use --tag")
                 return 2
             if not out.exists():
                 code = train_main(

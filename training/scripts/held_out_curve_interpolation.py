@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             "start_kept": kept,
             **{name: rows[name].mae for name, _, _ in models},
         }
-        print(work.name, json.dumps({k: v for k, v in summary[work.name].items()}))
+        print(work.name, json.dumps(summary[work.name]))
     args.out.write_text(json.dumps(summary, indent=2) + "\n")
     return 0
 

@@ -53,7 +53,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True, help="JSON report")
     args = p.parse_args(argv)
     nets = {name: load_model(resolve(name)) for name in args.model}
-    cached = {name: _cached(args.cache, resolve(name)) for name in args.model}
+    cache = args.cache
+    files = {name: _cache_file(cache, resolve(name)) for name in args.model} if cache else {}
+    cached = {name: _cached(path) for name, path in files.items()}
+    added: set[str] = set()
     first = next(iter(nets.values()))[1]
     if first.prior != "ukf":
         print(f"{args.model[0]}: not a residual on the UKF (prior {first.prior})")
@@ -72,25 +75,25 @@ def main(argv: list[str] | None = None) -> int:
         bag = Path(str(run.bag)).name
         est = {}
         for name, (net, meta) in nets.items():
-            store = cached[name]
+            store = cached.get(name)
             if store is not None and bag in store:
                 est[name] = store[bag]
             else:
                 est[name] = predict_run(net, meta, run)
                 if store is not None:
                     store[bag] = est[name]
+                    added.add(name)
         sizes = range(2, len(args.model) + 1) if args.subsets else [2] if args.pairs else []
         for k in sizes:
             for group in itertools.combinations(args.model, k):
                 est[f"mean({', '.join(group)})"] = np.mean([est[g] for g in group], axis=0)
         est["UKF"] = spec.prior_rad(run, w)[w - 1 :]
         ok = np.isfinite(ref) & np.all([np.isfinite(e) for e in est.values()], axis=0)
-        car = index[Path(str(run.bag)).name]["vehicle"]
+        car = index[bag]["vehicle"]
         for name, e in est.items():
             errors[car][name].append(np.abs(e[ok] - ref[ok]))
-    for name, store in cached.items():
-        if store is not None:
-            np.savez(_cache_file(args.cache, resolve(name)), **store)
+    for name in added:
+        np.savez(files[name], **cached[name])
     names = list(next(iter(errors.values())))
     per_car = {
         car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
@@ -130,16 +133,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _cache_file(folder: Path, model: Path) -> Path:
+    """Where ``model``'s estimates are kept: keyed by the file's bytes, so a retrained
+    model never reuses another's."""
+    folder.mkdir(parents=True, exist_ok=True)
     return folder / f"{hashlib.sha256(model.read_bytes()).hexdigest()[:16]}.npz"
 
 
-def _cached(folder: Path | None, model: Path) -> dict[str, np.ndarray] | None:
-    """The model's estimates per bag name kept in ``folder`` (empty when none yet); None
-    without a cache. Keyed by the file's bytes, so a retrained model never reuses them."""
-    if folder is None:
-        return None
-    folder.mkdir(parents=True, exist_ok=True)
-    path = _cache_file(folder, model)
+def _cached(path: Path) -> dict[str, np.ndarray]:
+    """The estimates per bag name kept at ``path`` (empty when none yet)."""
     if not path.is_file():
         return {}
     with np.load(path) as kept:
