@@ -14,7 +14,8 @@ from torch by.
 
 The groups are read from the weights, not from the file's provenance: any model whose
 units split this way is served, and a fine-tuned merged model whose zero blocks filled
-in is one group again and streams densely. A bilstm streams densely (its backward
+in is one group again and streams densely (the groups and each member's tensors:
+``sideslip_msgs_py.model_members``). A bilstm streams densely (its backward
 direction reads every unit of the layer below).
 """
 
@@ -26,62 +27,18 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 import numpy.typing as npt
 
+from sideslip_msgs_py import model_members
 from sideslip_msgs_py.artifact import ModelMetadata, expected_tensors
+from sideslip_msgs_py.model_members import member_tensors
 
 from .lstm_cells import FloatArray
 from .streaming import StreamingLstm
 
 
 def unit_groups(tensors: Mapping[str, np.ndarray], meta: ModelMetadata) -> list[np.ndarray]:
-    """Index arrays of the hidden units (ascending, the groups in order of their first
-    unit) such that no weight connects units of two groups in any layer: the members of
-    a merged model. One group of every unit for a bilstm or a network no zeros split."""
-    h = meta.hidden_units
-    if meta.directions != 1:
-        return [np.arange(h)]
-    coupled = np.zeros((h, h), dtype=bool)
-    for k in range(meta.layers):
-        names = [f"lstm.weight_hh_l{k}"] + ([f"lstm.weight_ih_l{k}"] if k > 0 else [])
-        for name in names:
-            # Unit j's four gate rows against unit m's column (the gates stack i, f, g, o).
-            weights = np.asarray(tensors[name]).reshape(4, h, h)
-            coupled |= np.any(weights != 0.0, axis=0)
-    coupled |= coupled.T
-    # Connected components by a plain search: scipy's csgraph would do it, but scipy is
-    # only in the ukf extra, and the pso_lstm back-end must not need it.
-    group = np.full(h, -1)
-    for seed in range(h):
-        if group[seed] >= 0:
-            continue
-        group[seed] = seed
-        frontier = [seed]
-        while frontier:
-            unit = frontier.pop()
-            for other in np.flatnonzero(coupled[unit] & (group < 0)):
-                group[other] = seed
-                frontier.append(int(other))
-    return [np.flatnonzero(group == g) for g in dict.fromkeys(group.tolist())]
-
-
-def member_tensors(
-    tensors: Mapping[str, np.ndarray], meta: ModelMetadata, units: np.ndarray, *, head_bias: bool
-) -> dict[str, np.ndarray]:
-    """The tensors of the network of ``units`` alone (a unidirectional lstm): their gate
-    rows, their recurrent and upper-layer input columns, their head weights; the head's
-    bias only where ``head_bias`` (exactly one group carries it)."""
-    h = meta.hidden_units
-    rows = np.concatenate([g * h + units for g in range(4)])
-    out: dict[str, np.ndarray] = {}
-    for k in range(meta.layers):
-        w_ih = np.asarray(tensors[f"lstm.weight_ih_l{k}"])[rows]
-        out[f"lstm.weight_ih_l{k}"] = w_ih if k == 0 else w_ih[:, units]
-        out[f"lstm.weight_hh_l{k}"] = np.asarray(tensors[f"lstm.weight_hh_l{k}"])[rows][:, units]
-        for b in ("bias_ih", "bias_hh"):
-            out[f"lstm.{b}_l{k}"] = np.asarray(tensors[f"lstm.{b}_l{k}"])[rows]
-    out["head.weight"] = np.asarray(tensors["head.weight"])[:, units]
-    bias = np.asarray(tensors["head.bias"])
-    out["head.bias"] = bias if head_bias else np.zeros_like(bias)
-    return {name: np.ascontiguousarray(t) for name, t in out.items()}
+    """The groups of hidden units no weight connects: the members of a merged model
+    (:func:`sideslip_msgs_py.model_members.unit_groups`)."""
+    return model_members.unit_groups(tensors, meta.hidden_units, meta.layers, meta.directions)
 
 
 class MemberSum:
@@ -103,7 +60,7 @@ class MemberSum:
         """The hidden units each engine runs (indices into the file's units)."""
         self.engines = [
             StreamingLstm(
-                member_tensors(tensors, meta, units, head_bias=n == 0),
+                member_tensors(tensors, meta.hidden_units, meta.layers, units, head_bias=n == 0),
                 dataclasses.replace(meta, hidden_units=len(units)),
                 dtype=dtype,
                 kernel=kernel,
@@ -157,4 +114,4 @@ def streaming_engine(
     return StreamingLstm(tensors, meta, dtype=dtype, kernel=kernel)
 
 
-__all__ = ["MemberSum", "member_tensors", "streaming_engine", "unit_groups"]
+__all__ = ["MemberSum", "streaming_engine", "unit_groups"]

@@ -20,6 +20,7 @@ from streaming_support import (
     z_rows,
 )
 
+from sideslip_estimator.backends.torch_window import TorchWindow
 from sideslip_estimator.streaming import KERNELS, StreamingLstm
 from sideslip_estimator.streaming_members import MemberSum, streaming_engine, unit_groups
 from sideslip_msgs_py.artifact import ModelMetadata, read_artifact
@@ -135,4 +136,30 @@ def test_shipped_models_give_the_same_output_per_member(path: Path) -> None:
     assert isinstance(engine, MemberSum) == merged_file
     np.testing.assert_allclose(
         engine.run(rows), StreamingLstm(tensors, meta).run(rows), rtol=0, atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("layers", [1, 2])
+def test_the_torch_engine_runs_a_merged_model_per_member_with_the_wide_networks_output(
+    layers: int,
+) -> None:
+    tensors, meta = merged([4, 6, 3], layers, seed=8)
+    window = TorchWindow(tensors, meta, threads=1)
+    assert window.members == 3
+    rows = z_rows(WINDOW + 5, len(FEATURES), seed=2)
+    exact = torch_outputs(tensors, meta, rows, torch.float64)
+    got = [window(rows[k : k + WINDOW]) for k in range(len(exact))]
+    np.testing.assert_allclose(got, exact, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_the_torch_engine_splits_exactly_the_shipped_merged_models(path: Path) -> None:
+    tensors, meta = read_artifact(path)
+    window = TorchWindow(tensors, meta, threads=1)
+    merged_members = len((meta.provenance or {}).get("merged", [])) or 1
+    assert window.members == merged_members
+    rows = z_rows(meta.window_steps, len(meta.features), seed=6)
+    exact = torch_outputs(tensors, meta, rows, torch.float64)
+    np.testing.assert_allclose(
+        [window(rows)], exact, rtol=TORCH_FLOAT32_RTOL, atol=TORCH_FLOAT32_ATOL
     )

@@ -142,6 +142,16 @@ def train_parser() -> argparse.ArgumentParser:
         "the fine-tuned weights; sideslip-fit --bags uses 0.5, chosen on validation cars: "
         "docs/evaluation/fit-bags); needs --normalization keep",
     )
+    p.add_argument(
+        "--init-members",
+        choices=["keep", "join"],
+        default="keep",
+        help="with --init of a merged model (sideslip-merge): keep (default) trains each "
+        "member on its own, the weights between members staying zero, so the result still "
+        "streams member by member at the members' cost; join trains the wide network as "
+        "one, its zeros fill in, and the estimator then runs it densely (docs/training.md, "
+        "\"Fine-tuning the five\")",
+    )
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
     p.add_argument(
         "--features",

@@ -155,6 +155,7 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         seed=args.seed,
         device=str(pick_device(args.device)),
         average_weights=args.average_weights,
+        keep_members=args.init_members == "keep",
     )
     if args.ray_address:
         from .parallel import import_ray

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
+from .member_net import MemberNet, split_members
 from .model import ModelConfig, SideslipNet
 from .normalize import Normalizer
 from .windows import WindowIndex
@@ -45,6 +46,9 @@ class TrainConfig:
     seed: int = 0
     device: str = "auto"  # auto | cpu | cuda
     average_weights: bool = False
+    keep_members: bool = True
+    """Fine-tuning a merged model: train each member alone, the weights between members
+    staying zero (:mod:`sideslip_training.member_net`); False trains the wide network."""
 
     def __post_init__(self) -> None:
         if self.architecture not in ("lstm", "bilstm"):
@@ -140,10 +144,14 @@ def train_model(
     model = SideslipNet(
         ModelConfig(cfg.architecture, len(normalizer.features), cfg.hidden_units, cfg.layers)
     )
+    net: nn.Module = model
     if init_state is not None:
         model.load_state_dict(dict(init_state), strict=True)
-    model = model.to(device)
-    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
+        if cfg.keep_members:
+            net = split_members(model) or model
+    net = net.to(device)
+    trained = [p for p in net.parameters() if p.requires_grad]
+    optimiser = torch.optim.Adam(trained, lr=cfg.learning_rate)
     loss_fn = nn.MSELoss()
     train_t, val_t = train.to_torch(device), val.to_torch(device)
     n_train, n_val = len(train.ends), len(val.ends)
@@ -154,11 +162,11 @@ def train_model(
     if cfg.average_weights:
         # A moving average whose memory is about one epoch's steps, whatever the data size.
         decay = 1.0 - 1.0 / max(2, math.ceil(n_train / cfg.batch_size))
-        averaged = AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(decay))
-    scored = model if averaged is None else averaged.module
+        averaged = AveragedModel(net, multi_avg_fn=get_ema_multi_avg_fn(decay))
+    scored = net if averaged is None else averaged.module
 
     result = TrainResult(model=model, best_epoch=0, best_val_mae_deg=math.inf, device=str(device))
-    best_state = copy.deepcopy(model.state_dict())
+    best_state = copy.deepcopy(net.state_dict())
     if init_state is not None and not keep_last:
         result.start_val_mae_deg = mae_deg(scored, val_t, normalizer, device, n_val)
         if math.isfinite(result.start_val_mae_deg):
@@ -167,17 +175,17 @@ def train_model(
     started = time.perf_counter()
     for epoch in range(1, cfg.max_epochs + 1):
         t0 = time.perf_counter()
-        model.train()
+        net.train()
         order = torch.randperm(n_train, generator=shuffle).to(device)
         loss_sum, batches = 0.0, 0
         for start in range(0, n_train, cfg.batch_size):
             x, y = train_t.batch(order[start : start + cfg.batch_size])
             optimiser.zero_grad(set_to_none=True)
-            loss = loss_fn(model(x), y)
+            loss = loss_fn(net(x), y)
             loss.backward()
             optimiser.step()
             if averaged is not None:
-                averaged.update_parameters(model)
+                averaged.update_parameters(net)
             loss_sum += float(loss.detach())
             batches += 1
         train_seconds = time.perf_counter() - t0
@@ -208,7 +216,7 @@ def train_model(
             f"no epoch with a finite validation MAE (lr {cfg.learning_rate:g}, "
             f"{cfg.hidden_units} units): training diverged"
         )
-    model.load_state_dict(best_state)
-    result.model = model.cpu().eval()
+    net.load_state_dict(best_state)
+    result.model = (net.joined() if isinstance(net, MemberNet) else net).cpu().eval()
     result.seconds = time.perf_counter() - started
     return result
