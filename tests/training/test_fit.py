@@ -113,7 +113,7 @@ def test_a_description_alone_starts_from_the_model_trained_on_described_cars_too
     # the filter's tyres typical: the model that saw described cars' filters in
     # training, with the same inputs.
     assert default_start("measurable", bags=False) == "fleet_ukf_described"
-    assert default_start("measurable", bags=True) == "fleet_ukf_merged"
+    assert default_start("measurable", bags=True) == "fleet_ukf_ensemble"
     assert default_start("paper", bags=False) == default_start("paper", bags=True)
     described = read_artifact(resolve("fleet_ukf_described"))[1]
     measurable = read_artifact(resolve("fleet_ukf_measurable"))[1]

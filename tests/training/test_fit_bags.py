@@ -41,11 +41,11 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
     card = out.with_suffix(".md").read_text()
     deploy = f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}"
     rows = ("UKF (described axles)", "UKF (identified axles)", "β = 0", "(my_car)")
-    for text in (*rows, "(fleet_ukf_merged)", deploy):
+    for text in (*rows, "(fleet_ukf_ensemble)", deploy):
         assert text in card
     # The kinematic baselines read the reference velocity: not a sensor of this car.
     assert "Kinematic" not in card
-    # A quarter of the way from the merged start's weights by default (what that does
+    # A quarter of the way from the ensemble start's weights by default (what that does
     # to the weights: test_cli's interpolation test; these 2 epochs keep the start's).
     config = json.loads((out.with_suffix(".fit") / "train-run" / "config.json").read_text())
     assert config["args"]["interpolate"] == 0.25
@@ -73,7 +73,7 @@ def test_the_fitted_model_publishes_a_calibrated_sigma_and_the_card_says_how_it_
 
     _, out = fitted
     mine = read_artifact(out)[1]
-    shipped = read_artifact(resolve("fleet_ukf_merged"))[1]
+    shipped = read_artifact(resolve("fleet_ukf_ensemble"))[1]
     assert mine.uncertainty is not None
     assert mine.uncertainty["coefficients"] == shipped.uncertainty["coefficients"]
     assert mine.metrics["interval_calibration"]["scale_only"] == 1.0
@@ -170,6 +170,7 @@ def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tm
 
     given = argparse.Namespace(interpolate=None)
     assert interpolation(given, "fleet_ukf_merged") == 0.25
+    assert interpolation(given, "fleet_ukf_ensemble") == 0.25
     assert interpolation(given, str(tmp_path / "fleet_ukf_merged.safetensors")) == 0.25
     assert interpolation(given, "fleet_ukf_measurable") == DEFAULT_INTERPOLATION == 0.5
     assert interpolation(argparse.Namespace(interpolate=0.8), "fleet_ukf_merged") == 0.8
@@ -188,7 +189,7 @@ def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tm
         (["--test-bags", "{tmp}/nothing"], "nothing"),
         (["--test-bags", "{short}"], "holds no stretch of a full 100-sample window"),
         (
-            ["--features", "measurable", "--out", "{tmp}/fleet_ukf_merged.safetensors"],
+            ["--features", "measurable", "--out", "{tmp}/fleet_ukf_ensemble.safetensors"],
             "name the fitted model other",
         ),
     ],

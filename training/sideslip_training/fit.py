@@ -53,12 +53,15 @@ corrects a described car's filter better than ``fleet_ukf_measurable``, which on
 saw true files (fits from it on 16 validation cars: 0.048° against 0.056°, better on
 12; docs/training.md). With recordings (``--bags``) the axles are identified, the
 filter is nearly right, and the fit starts from :data:`SHIPPED_BAGS`."""
-SHIPPED_BAGS: Final = "fleet_ukf_merged"
-"""The start of a ``measurable`` fit to recordings: the mean of ``fleet_ukf_measurable``
-and ``fleet_ukf_described`` in one file. Chosen on four validation cars, 5 minutes of
-each one's driving: fitted from it 0.0300° on the cars' other drives against 0.0317°
-from ``fleet_ukf_measurable`` (better on all four), level on the recordings' own test
-part (0.0460° against 0.0455°); docs/models/fleet_ukf_merged."""
+SHIPPED_BAGS: Final = "fleet_ukf_ensemble"
+"""The start of a ``measurable`` fit to recordings: five networks averaged in one file,
+fine-tuned member by member (``sideslip-train --init-members keep``). Chosen on eight
+validation cars, 5 minutes of each one's driving, scored on their 18 benchmark-style
+drives: fitted from it (0.25 of the way) 0.0283° against 0.0290° from
+``fleet_ukf_merged``, the start before 2026-12-05 (better on 7 of 8);
+docs/models/fleet_ukf_ensemble/finetune-start-validation.json. Before, the pair had
+replaced ``fleet_ukf_measurable`` the same way (0.0300° against 0.0317° on four cars;
+docs/models/fleet_ukf_merged)."""
 SHIPPED: Final = {"paper": SHIPPED_PAPER, "measurable": SHIPPED_MEASURABLE}
 
 
@@ -329,7 +332,7 @@ def _model_card(
         "fleet's typical tyres. Recordings with a reference β measure the car's own: "
         f"`sideslip-identify-axles --vehicle {args.vehicle} --data BAGS --out my_car.ukf.yaml` "
         "fits the axles' cornering stiffness to them. Give that file to the shipped "
-        "`fleet_ukf_merged` (trained on true axle files and on described ones), or "
+        "`fleet_ukf_ensemble` (trained on true axle files and on described ones), or "
         "fine-tune that model on "
         "the recordings with it (`--observer-params`), not to this model, which learnt to "
         "correct the described file (docs/training.md, \"Axles from the car's own "
