@@ -150,7 +150,7 @@ def train_parser() -> argparse.ArgumentParser:
         "member on its own, the weights between members staying zero, so the result still "
         "streams member by member at the members' cost; join trains the wide network as "
         "one, its zeros fill in, and the estimator then runs it densely (docs/training.md, "
-        "\"Fine-tuning the five\")",
+        '"Fine-tuning the five")',
     )
     p.add_argument("--pso", action="store_true", help="tune learning rate and hidden units by PSO")
     p.add_argument(
