@@ -183,5 +183,6 @@ def test_sideslip_train_init_of_a_merged_file_writes_one_that_streams_per_member
         assert train_main([*args, "--learning-rate", "0.01", "--out", str(out), *TINY]) == 0
         tensors, tuned_meta = read_artifact(out)
         runs[members] = streaming_engine(tensors, tuned_meta)
+        assert tuned_meta.provenance["init_members"] == members
     assert isinstance(runs["keep"], MemberSum) and len(runs["keep"].engines) == 2
     assert isinstance(runs["join"], StreamingLstm)

@@ -109,6 +109,8 @@ def model_metadata(
                     "init": init.path.name,
                     "init_data": init.meta.training_data_digest,
                     "normalization": normalization,
+                    # Whether a merged start was trained member by member.
+                    "init_members": "keep" if plan.base.keep_members else "join",
                 }
                 if init is not None
                 else {}

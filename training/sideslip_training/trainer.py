@@ -133,7 +133,8 @@ def train_model(
     keep_last: bool = False,
 ) -> TrainResult:
     """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE; from the
-    weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation.
+    weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation;
+    a merged ``init_state`` trains member by member unless ``cfg.keep_members`` is False.
     A fine-tuning is scored on ``val`` before its first step too, and keeps the
     starting weights (``best_epoch`` 0) when no epoch beats them: it never returns a
     model worse on validation than the one it started from.
