@@ -77,7 +77,8 @@ def torch_outputs(
     lstm.load_state_dict({k: v for k, v in weights.items() if not k.startswith("head.")})
     lstm = lstm.to(dtype)
     windows = sliding_window_view(rows.astype(np.float32), (meta.window_steps, rows.shape[1]))
-    x = torch.from_numpy(np.ascontiguousarray(windows[:, 0])).to(dtype)
+    # A copy: one window of a read-only view stays read-only, which torch warns about.
+    x = torch.from_numpy(np.array(windows[:, 0])).to(dtype)
     head_w = torch.from_numpy(tensors["head.weight"]).to(dtype)
     head_b = torch.from_numpy(tensors["head.bias"]).to(dtype)
     with torch.inference_mode():
