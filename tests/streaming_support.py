@@ -1,5 +1,6 @@
-"""Helpers of the streaming-engine tests: random model files, z-scored rows, and torch's
-per-window output to compare with (imported by name: ``tests`` is on the path)."""
+"""Helpers of the streaming-engine tests: random model files, merged random networks,
+z-scored rows, and torch's per-window output to compare with (imported by name:
+``tests`` is on the path)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from sideslip_msgs_py.artifact import ModelMetadata, expected_tensors, write_artifact
 from sideslip_msgs_py.features import CHANNELS
+from sideslip_training.merge import merge
+from sideslip_training.model import ModelConfig, SideslipNet
 
 torch.set_num_threads(1)
 WINDOW = 100
@@ -85,3 +88,39 @@ def torch_outputs(
         output, _ = lstm(x)
         y = output[:, -1, :] @ head_w.T + head_b
     return y[:, 0].double().numpy()
+
+
+def merged_random_net(
+    hidden: list[int],
+    layers: int,
+    seed: int,
+    features: tuple[str, ...],
+    window: int,
+    *,
+    own_statistics: bool = False,
+) -> tuple[SideslipNet, ModelMetadata]:
+    """``sideslip-merge``'s network of random members of ``hidden`` units each; with
+    ``own_statistics`` every member has its own input and β statistics, so the merge
+    folds them into the weights (else unit input statistics, β mean 0)."""
+    members = []
+    for i, h in enumerate(hidden):
+        torch.manual_seed(seed + i)
+        net = SideslipNet(ModelConfig("lstm", len(features), h, layers)).eval()
+        n = len(features)
+        meta = ModelMetadata(
+            architecture="lstm",
+            hidden_units=h,
+            layers=layers,
+            features=features,
+            window_steps=window,
+            dt_s=0.0025,
+            feature_mean=(
+                tuple(0.1 * (i + 1) * k for k in range(n)) if own_statistics else (0.0,) * n
+            ),
+            feature_std=(1.0 + 0.2 * i,) * n if own_statistics else (1.0,) * n,
+            beta_mean=0.001 * i if own_statistics else 0.0,
+            beta_std=0.01 * (i + 1),
+            training_data_digest=f"digest{i}",
+        )
+        members.append((net, meta))
+    return merge(members, [f"m{i}" for i in range(len(hidden))])

@@ -15,6 +15,7 @@ from streaming_support import (
     SHIPPED,
     TORCH_FLOAT32_ATOL,
     TORCH_FLOAT32_RTOL,
+    merged_random_net,
     random_model,
     torch_outputs,
     z_rows,
@@ -24,8 +25,6 @@ from sideslip_estimator.backends.torch_window import TorchWindow
 from sideslip_estimator.streaming import KERNELS, StreamingLstm
 from sideslip_estimator.streaming_members import MemberSum, streaming_engine, unit_groups
 from sideslip_msgs_py.artifact import ModelMetadata, read_artifact
-from sideslip_training.merge import merge
-from sideslip_training.model import ModelConfig, SideslipNet
 
 FEATURES = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m")
 WINDOW = 20
@@ -35,25 +34,7 @@ def merged(
     hidden: list[int], layers: int, seed: int
 ) -> tuple[dict[str, np.ndarray], ModelMetadata]:
     """``sideslip-merge``'s network of random members of ``hidden`` units each."""
-    members = []
-    for i, h in enumerate(hidden):
-        torch.manual_seed(seed + i)
-        net = SideslipNet(ModelConfig("lstm", len(FEATURES), h, layers)).eval()
-        meta = ModelMetadata(
-            architecture="lstm",
-            hidden_units=h,
-            layers=layers,
-            features=FEATURES,
-            window_steps=WINDOW,
-            dt_s=0.0025,
-            feature_mean=(0.0,) * len(FEATURES),
-            feature_std=(1.0,) * len(FEATURES),
-            beta_mean=0.0,
-            beta_std=0.01 * (i + 1),
-            training_data_digest=f"digest{i}",
-        )
-        members.append((net, meta))
-    net, meta = merge(members, [f"m{i}" for i in range(len(hidden))])
+    net, meta = merged_random_net(hidden, layers, seed, FEATURES, WINDOW)
     tensors = {k: v.detach().numpy().copy() for k, v in net.state_dict().items()}
     return tensors, meta
 

@@ -153,3 +153,26 @@ def compact_rwd_description(tmp_path: Path) -> Path:
     from described_cars import describe_compact_rwd
 
     return describe_compact_rwd(tmp_path / "my_car.yaml")
+
+
+@pytest.fixture(scope="module")
+def paper_windows(sim_bag_dir: Path):
+    """Training and validation windows (paper features, stride 5) of :func:`sim_bag_dir`
+    split by bag, and their normalizer, for trainer-level tests (one torch thread)."""
+    import torch
+
+    from sideslip_msgs_py.features import feature_set
+    from sideslip_training.config import WINDOW_STEPS
+    from sideslip_training.dataset import load_runs
+    from sideslip_training.normalize import Normalizer
+    from sideslip_training.splits import split_runs
+    from sideslip_training.windows import WindowIndex
+
+    torch.set_num_threads(1)
+    features = feature_set("paper")
+    runs, _ = load_runs([sim_bag_dir])
+    train_runs, val_runs = split_runs(runs, 0.25, 0)
+    norm = Normalizer.fit(train_runs, features)
+    train = WindowIndex.build(train_runs, features, norm, WINDOW_STEPS, 5)
+    val = WindowIndex.build(val_runs, features, norm, WINDOW_STEPS, 5)
+    return train, val, norm

@@ -11,56 +11,30 @@ import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from streaming_support import merged_random_net
 
 from sideslip_estimator.streaming import StreamingLstm
 from sideslip_estimator.streaming_members import MemberSum, streaming_engine
 from sideslip_msgs_py.artifact import ModelMetadata, read_artifact
-from sideslip_msgs_py.features import feature_set
 from sideslip_msgs_py.model_members import joined_tensors, unit_groups
 from sideslip_training.cli import train_main
 from sideslip_training.config import WINDOW_STEPS
-from sideslip_training.dataset import load_runs
 from sideslip_training.export import export_model, load_model
 from sideslip_training.member_net import MemberNet, split_members
 from sideslip_training.merge import merge
 from sideslip_training.model import ModelConfig, SideslipNet
-from sideslip_training.normalize import Normalizer
-from sideslip_training.splits import split_runs
 from sideslip_training.trainer import TrainConfig, train_model
-from sideslip_training.windows import WindowIndex
 
 FEATURES = ("x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps")
 N_FEATURES = len(FEATURES)
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
 
 
-def _member_meta(h: int, layers: int, i: int, features: tuple[str, ...]) -> ModelMetadata:
-    return ModelMetadata(
-        architecture="lstm",
-        hidden_units=h,
-        layers=layers,
-        features=features,
-        window_steps=WINDOW_STEPS,
-        dt_s=0.0025,
-        feature_mean=tuple(0.1 * (i + 1) * k for k in range(len(features))),
-        feature_std=tuple(1.0 + 0.2 * i for _ in features),
-        beta_mean=0.001 * i,
-        beta_std=0.01 * (i + 1),
-        training_data_digest=f"digest{i}",
-    )
-
-
 def merged_net(
-    hidden: list[int], layers: int, seed: int, features: tuple[str, ...] | None = None
+    hidden: list[int], layers: int, seed: int, features: tuple[str, ...] = FEATURES
 ) -> tuple[SideslipNet, ModelMetadata]:
-    """``sideslip-merge``'s network of random members with ``hidden`` units each."""
-    features = features or FEATURES
-    members = []
-    for i, h in enumerate(hidden):
-        torch.manual_seed(seed + i)
-        net = SideslipNet(ModelConfig("lstm", len(features), h, layers)).eval()
-        members.append((net, _member_meta(h, layers, i, features)))
-    return merge(members, [f"m{i}" for i in range(len(hidden))])
+    """``sideslip-merge``'s network of random members, each with its own statistics."""
+    return merged_random_net(hidden, layers, seed, features, WINDOW_STEPS, own_statistics=True)
 
 
 def _state(net: torch.nn.Module) -> dict[str, np.ndarray]:
@@ -125,21 +99,11 @@ def test_a_bilstm_or_a_plain_network_does_not_split() -> None:
     assert split_members(SideslipNet(ModelConfig("bilstm", N_FEATURES, 6, 1))) is None
 
 
-@pytest.fixture(scope="module")
-def windows(sim_bag_dir: Path):
-    torch.set_num_threads(1)
-    features = feature_set("paper")
-    runs, _ = load_runs([sim_bag_dir])
-    train_runs, val_runs = split_runs(runs, 0.25, 0)
-    norm = Normalizer.fit(train_runs, features)
-    train = WindowIndex.build(train_runs, features, norm, WINDOW_STEPS, 5)
-    val = WindowIndex.build(val_runs, features, norm, WINDOW_STEPS, 5)
-    return train, val, norm
-
-
 @pytest.mark.parametrize("keep", [True, False])
-def test_fine_tuning_a_merged_model_keeps_its_members_apart_unless_told_to_join(windows, keep):
-    train, val, norm = windows
+def test_fine_tuning_a_merged_model_keeps_its_members_apart_unless_told_to_join(
+    paper_windows, keep
+):
+    train, val, norm = paper_windows
     wide, _ = merged_net([4, 3], 1, seed=2, features=tuple(norm.features))
     cfg = TrainConfig(
         hidden_units=7, max_epochs=2, batch_size=32, device="cpu", seed=1, keep_members=keep

@@ -3,32 +3,18 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-from sideslip_msgs_py.features import feature_set
-from sideslip_training.config import WINDOW_STEPS
-from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import metrics_deg
-from sideslip_training.normalize import Normalizer
-from sideslip_training.splits import split_runs
 from sideslip_training.trainer import TrainConfig, train_model
-from sideslip_training.windows import WindowIndex
 
 
 @pytest.fixture(scope="module")
-def data(sim_bag_dir: Path):
-    torch.set_num_threads(1)
-    features = feature_set("paper")
-    runs, _ = load_runs([sim_bag_dir])
-    train_runs, val_runs = split_runs(runs, 0.25, 0)
-    norm = Normalizer.fit(train_runs, features)
-    train = WindowIndex.build(train_runs, features, norm, WINDOW_STEPS, 5)
-    val = WindowIndex.build(val_runs, features, norm, WINDOW_STEPS, 5)
-    return train, val, norm
+def data(paper_windows):
+    return paper_windows
 
 
 def _cfg(**changes) -> TrainConfig:

@@ -92,7 +92,10 @@ def merged_fine_tune(runs, features, norm, device: str, stride: int, members: in
     wide, _ = merge(nets, [f"m{k}" for k in range(members)])
     out: dict = {"members": members, "hidden_units": 64 * members, "windows": len(index.ends)}
     for keep in (True, False):
-        cfg = TrainConfig("lstm", 64 * members, 1, 1e-3, 2, 5, 512, 0, device, False, keep)
+        cfg = TrainConfig(
+            hidden_units=64 * members, max_epochs=2, batch_size=512, device=device,
+            keep_members=keep,
+        )  # fmt: skip
         result = train_model(cfg, index, val, norm, init_state=wide.state_dict(), keep_last=True)
         rec = result.history[-1]
         out["member_by_member" if keep else "joined"] = {

@@ -41,12 +41,12 @@ class MemberNet(nn.Module):
             SideslipNet(ModelConfig("lstm", config.n_features, len(g), config.layers))
             for g in self.groups
         )
-        for member in list(self.members)[1:]:
+        for member in self.members[1:]:
             member.head.bias.requires_grad_(False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         out = self.members[0](x)
-        for member in list(self.members)[1:]:
+        for member in self.members[1:]:
             out = out + member(x)
         return out
 
