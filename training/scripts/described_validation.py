@@ -14,7 +14,8 @@ car's true one (``sideslip-evaluate``, pooled MAE per car).
 ``--held-out`` takes the cars from ``sideslip_sim.held_out`` instead (``--data
 data/held-out``: the held-out benchmark, for a model chosen before, scored once);
 ``--identified DIR`` adds a third file per car, ``DIR/CAR/identified-5min.ukf.yaml`` (as
-``held_out_fit.py --zero-shot --identify 5`` writes it).
+``held_out_fit.py --zero-shot --identify 5`` writes it); ``--files`` scores with some of
+the files only (e.g. ``--files described`` for a model already scored with the true ones).
 """
 
 from __future__ import annotations
@@ -44,7 +45,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--held-out", action="store_true", help="the held-out cars' runs")
     p.add_argument("--identified", type=Path, help="folder of identified-axle ukf files")
+    p.add_argument(
+        "--files",
+        nargs="+",
+        choices=("described", "true", "identified"),
+        help="score with these car files only (default: described, true, and identified "
+        "with --identified)",
+    )
     args = p.parse_args(argv)
+    tags = args.files or ["described", "true", *([] if args.identified is None else ["identified"])]
+    if "identified" in tags and args.identified is None:
+        p.error("--files identified needs --identified DIR")
     if args.held_out:
         fleet = held_out_vehicles()
     else:
@@ -68,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         true_file = write_true_ukf(car, work / "true.ukf.yaml", "described_validation.py")
         mae: dict[str, float] = {}
         identified = None
-        if args.identified is not None:
+        if "identified" in tags:
             identified = args.identified / name / "identified-5min.ukf.yaml"
             if not identified.exists():
                 print(f"{name}: no {identified}", file=sys.stderr)
@@ -78,6 +89,8 @@ def main(argv: list[str] | None = None) -> int:
             ("true", ["--ukf-params", str(true_file)]),
             *([] if identified is None else [("identified", observer_file_args(desc, identified))]),
         ):
+            if tag not in tags:
+                continue
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *map(str, args.model), "--data", *bags,
                                   "--out", str(report), "--force", *files])  # fmt: skip
@@ -88,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         results[name] = mae
         print(name, {k: round(v, 4) for k, v in mae.items() if "β" not in k}, file=sys.stderr)
     (args.out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
-    for tag in ("described", "true", *([] if args.identified is None else ["identified"])):
+    for tag in tags:
         for key in [*stems, "UKF"]:
             values = [r[f"{key} [{tag}]"] for r in results.values()]
             mean = sum(values) / len(values)
