@@ -116,12 +116,19 @@ def pooled_mae(report: Path, stems: list[str], lone: str | None = None) -> dict[
     kind "LABEL (stem)") and per baseline, from a report folder. A report of one model
     labels it "ARCH [features]..." without a stem: ``lone`` names it then."""
     summary = json.loads((report / "metrics.json").read_text())
+    # Reports that map model files to their rows name the models whatever the labels
+    # (two models of different kinds carry no stem in theirs).
+    by_label = {
+        label: Path(path).stem
+        for path, label in summary.get("model_estimators", {}).items()
+        if Path(path).stem in stems
+    }
     out = {}
     for r in summary["pooled"]:
         if r["mae"] is None:
             continue
         name = r["estimator"]
-        tag = next((s for s in stems if name.endswith(f"({s})")), name)
+        tag = by_label.get(name) or next((s for s in stems if name.endswith(f"({s})")), name)
         if tag == name and lone is not None and "[" in name:
             tag = lone
         out[tag] = r["mae"]
