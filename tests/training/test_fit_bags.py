@@ -176,6 +176,21 @@ def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tm
     assert interpolation(argparse.Namespace(interpolate=0.8), "fleet_ukf_merged") == 0.8
 
 
+def test_the_ensemble_start_is_fine_tuned_at_its_own_learning_rate_unless_one_is_given(
+    tmp_path,
+):
+    import argparse
+
+    from sideslip_training.fit_bags_args import learning_rate
+
+    given = argparse.Namespace(learning_rate=None)
+    assert learning_rate(given, "fleet_ukf_ensemble") == 3e-4
+    assert learning_rate(given, str(tmp_path / "fleet_ukf_ensemble.safetensors")) == 3e-4
+    assert learning_rate(given, "fleet_ukf_merged") is None  # the profile's
+    assert learning_rate(given, "fleet_lstm_paper") is None
+    assert learning_rate(argparse.Namespace(learning_rate=1e-3), "fleet_ukf_ensemble") == 1e-3
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from .cli_errors import CliError
-from .fit_bags_args import BAG_RECIPES, interpolation, rehearsal_runs
+from .fit_bags_args import BAG_RECIPES, interpolation, learning_rate, rehearsal_runs
 from .fit_bags_card import (
     gentle_recordings,
     model_card,
@@ -226,7 +226,8 @@ def run(
         train += ["--device", args.device, "--seed", str(args.seed)]
         train += ["--topic-map", str(args.topic_map)] if args.topic_map else []
         train += ["--max-epochs", str(args.max_epochs)] if args.max_epochs else []
-        train += ["--learning-rate", repr(args.learning_rate)] if args.learning_rate else []
+        rate = learning_rate(args, shipped)
+        train += ["--learning-rate", repr(rate)] if rate is not None else []
         train += ["--interpolate", repr(interpolation(args, shipped))]
         train += ["--quiet"] if args.quiet else []
         if measurable:

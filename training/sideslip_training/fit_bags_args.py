@@ -33,6 +33,15 @@ docs/models/fleet_ukf_ensemble/finetune-start-validation.json). A better start n
 less of the recordings' pull."""
 
 
+START_LEARNING_RATE: Final = {"fleet_ukf_ensemble": 3e-4}
+"""Starts fine-tuned at a learning rate of their own (``sideslip-train --learning-rate``;
+other starts: the profile's, 1e-3). ``fleet_ukf_ensemble`` fitted to 5 minutes of 8
+validation cars' driving, scored on their 18 benchmark drives each, α 0.25: 3e-4 0.0276°,
+1e-3 0.0283° (better on 6 of 8, level on 1; the worst car 27 % worse than the start
+instead of 42 %), at about 1.8 times the epochs
+(docs/models/fleet_ukf_ensemble/finetune-lr-validation.json)."""
+
+
 @dataclass(frozen=True)
 class BagRecipe:
     """How ``sideslip-train`` fine-tunes on the recordings."""
@@ -147,6 +156,13 @@ def interpolation(args: argparse.Namespace, start: str) -> float:
         return float(args.interpolate)
     name = Path(start).name.removesuffix(".safetensors")
     return START_INTERPOLATION.get(name, DEFAULT_INTERPOLATION)
+
+
+def learning_rate(args: argparse.Namespace, start: str) -> float | None:
+    """``--learning-rate``, or the ``start`` model's own (None: the profile's)."""
+    if args.learning_rate is not None:
+        return float(args.learning_rate)
+    return START_LEARNING_RATE.get(Path(start).name.removesuffix(".safetensors"))
 
 
 def rehearsal_runs(args: argparse.Namespace) -> int:

@@ -244,7 +244,8 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
 
 
 # Measured on the simulated held-out cars (docs/evaluation/fit-bags, 2026-12-03; the
-# ensemble start: docs/evaluation/held-out-curve, 2026-12-05): the
+# ensemble start: docs/evaluation/held-out-curve and docs/models/fleet_ukf_ensemble/
+# finetune-lr-validation.json, 2026-12-05): the
 # own-drive test part favours a fit that other drives of the same car do not.
 OWN_DRIVES_CAUTION = (
     "On six simulated held-out cars, plain fits from the shipped start beat it on their own "
@@ -252,8 +253,8 @@ OWN_DRIVES_CAUTION = (
     "the shipped model's 0.028° with the identified `ukf` file); kept half way from the "
     "start (`--interpolate 0.5`) they beat it there by 6 % (0.0265°, worse on 1 of 6); from "
     "`fleet_ukf_ensemble` with 5 minutes of driving (a quarter of the way) by 5 %, on all 6, "
-    "but on eight validation cars the same fits were level with the start and 42 % worse on "
-    "one: before deploying, compare both on a recording the fit never saw. "
+    "but on eight validation cars such fits beat the start by only 3 % and were 27 % worse "
+    "on one: before deploying, compare both on a recording the fit never saw. "
 )
 
 
