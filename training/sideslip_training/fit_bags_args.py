@@ -154,15 +154,19 @@ def interpolation(args: argparse.Namespace, start: str) -> float:
     or a file)."""
     if args.interpolate is not None:
         return float(args.interpolate)
-    name = Path(start).name.removesuffix(".safetensors")
-    return START_INTERPOLATION.get(name, DEFAULT_INTERPOLATION)
+    return START_INTERPOLATION.get(_start_name(start), DEFAULT_INTERPOLATION)
 
 
 def learning_rate(args: argparse.Namespace, start: str) -> float | None:
     """``--learning-rate``, or the ``start`` model's own (None: the profile's)."""
     if args.learning_rate is not None:
         return float(args.learning_rate)
-    return START_LEARNING_RATE.get(Path(start).name.removesuffix(".safetensors"))
+    return START_LEARNING_RATE.get(_start_name(start))
+
+
+def _start_name(start: str) -> str:
+    """The shipped name of a start given by name or as a file."""
+    return Path(start).name.removesuffix(".safetensors")
 
 
 def rehearsal_runs(args: argparse.Namespace) -> int:
