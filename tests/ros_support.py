@@ -127,7 +127,7 @@ class Probe:
         import rclpy
         from rclpy.context import Context
 
-        from sideslip_msgs_py.nodes.runtime import make_executor
+        from sideslip_msgs_py.nodes.runtime import SpinThread, make_executor
 
         self.rclpy = rclpy
         self.context = Context()
@@ -138,17 +138,7 @@ class Probe:
         self.executor = make_executor(self.context)
         self.executor.add_node(self.node)
         self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
-        try:
-            while self.context.ok():
-                self.executor.spin_once(timeout_sec=0.05)
-        except (ExternalShutdownException, RuntimeError):
-            pass
+        self._spinner = SpinThread(self.executor, self.context, name=f"{name}-spin")
 
     def subscribe(
         self, topic: str, msg_type: Any, qos: Any = 10, *, raw: bool = False
@@ -182,8 +172,11 @@ class Probe:
         )
 
     def close(self) -> None:
+        # The spin thread leaves the executor before anything is destroyed: destroying
+        # a node under a spinning thread once crashed the pytest process (SIGSEGV).
+        if not self._spinner.stop():
+            pytest.fail(f"{self.node.get_name()}: spin thread still inside the executor")
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         if self.context.ok():
             self.rclpy.shutdown(context=self.context)
-        self._thread.join(2.0)

@@ -23,7 +23,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -38,7 +37,7 @@ from sensor_msgs.msg import Imu
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.messages import stamp_ns
 from sideslip_msgs_py.nodes.qos import profile_for
-from sideslip_msgs_py.nodes.runtime import make_executor
+from sideslip_msgs_py.nodes.runtime import SpinThread, make_executor
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/ when run as a script
 from machine import emit_report
@@ -76,15 +75,7 @@ class Listener:
         )
         self.executor = make_executor(self.context)
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # shutdown races end the thread
-                return
+        self._spinner = SpinThread(self.executor, self.context, name="bench-listener")
 
     def _on_imu(self, msg: Imu) -> None:
         now = time.time_ns()
@@ -97,9 +88,11 @@ class Listener:
             self.twist.append((now, stamp_ns(msg)))
 
     def close(self) -> None:
+        if not self._spinner.stop():  # destroying under a spinning thread can segfault
+            raise RuntimeError("bench listener: spin thread still inside the executor")
+        self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
-        self._thread.join(2.0)
 
 
 def _stop(proc: subprocess.Popen[bytes]) -> int:

@@ -42,6 +42,38 @@ def make_executor(context: Any = None) -> Any:
     return EventsExecutor(context=context)
 
 
+class SpinThread:
+    """Spins ``executor`` on a daemon thread until :meth:`stop`.
+
+    Why not a bare ``while context.ok(): spin_once()`` thread: rclpy does not allow a
+    node to be destroyed while another thread is inside ``spin_once`` (ros2/rclpy#255,
+    #260); with messages still arriving it can crash the whole process with a
+    segmentation fault. :meth:`stop` returns only once the thread has left the
+    executor, so destroying the node afterwards is safe.
+    """
+
+    def __init__(self, executor: Any, context: Any, name: str = "spin") -> None:
+        self._executor = executor
+        self._context = context
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name=name, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            while not self._stop.is_set() and self._context.ok():
+                self._executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+        except (ExternalShutdownException, RuntimeError):
+            pass  # the context was shut down under the spin: nothing left to serve
+
+    def stop(self, timeout_s: float = 5.0) -> bool:
+        """Stop spinning; True once the thread has left ``spin_once`` (within
+        ``timeout_s``), False if it is still inside (then the node must not be destroyed)."""
+        self._stop.set()
+        self._thread.join(timeout_s)
+        return not self._thread.is_alive()
+
+
 class StopFlag:
     """Set by SIGINT/SIGTERM (or by a node that has finished its work)."""
 
