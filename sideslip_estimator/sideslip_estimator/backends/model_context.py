@@ -1,11 +1,20 @@
 """What a model reads besides its window: the car, the UKF observer, and whether the car
 lies inside the range of cars the model was trained on.
 
-A model that reads the car takes it from ``pso_lstm.vehicle_file`` or the car stored in
-the model; a model that reads the UKF observer runs the ``ukf`` back-end with the car's
-params file. Such a model may carry its training cars' envelope
-(:mod:`sideslip_msgs_py.fleet_envelope`); a car outside it is handled as
-``pso_lstm.outside_fleet`` says (:func:`fleet_check`).
+A model that reads the car (``vehicle.*`` inputs, road-wheel angle, ...) takes it from
+``pso_lstm.vehicle_file`` (a description YAML, see
+:class:`~sideslip_msgs_py.vehicle_description.VehicleDescription`, or a simulator
+vehicle file), else from the car stored in the model; without either it is refused at
+start-up (:func:`vehicle_for`). A model that reads the UKF observer (``ukf.*`` inputs or
+the ``ukf`` prior: a residual on the UKF) runs the ``ukf`` back-end beside its window,
+on every sample, with the filter settings stored in the model and the car's ``ukf``
+params file (``pso_lstm.observer_params_file``, required for such a model;
+:func:`observer_for`); a window in which the filter gave no estimate for some row
+(below its speed, after a restart) gives none. Such a model may carry its training
+cars' envelope (:mod:`sideslip_msgs_py.fleet_envelope`), checked against the car of
+that params file; outside it, ``pso_lstm.outside_fleet`` chooses between the UKF's own
+estimate (the default for a residual on the UKF), the model's, or no start, and the
+status WARNs (:func:`fleet_check`).
 """
 
 from __future__ import annotations

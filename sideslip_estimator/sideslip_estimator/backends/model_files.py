@@ -3,6 +3,17 @@
 The package ships its models under ``sideslip_estimator/data/models``; ``model_file``
 names one of them, a ``.safetensors`` path, or nothing (the default for what the
 deployment gives, :func:`default_model`).
+
+Beyond a fine-tuned model's recordings: a model ``sideslip-fit --bags`` fine-tuned on one
+car records the range of the recordings it was fitted on (``FitRange`` in its σ). While
+the input window reaches beyond it, ``pso_lstm.beyond_fit_range`` chooses: ``start``
+publishes the estimate and σ of the model it was fine-tuned from (the node runs both,
+every sample), ``model`` this model's with σ widened, ``auto`` (default) ``start`` when
+the recordings were gentle (|a_y| under ``GENTLE_LATERAL_MPS2``) and that model is found
+(``start_model_file``, or the shipped model the file names with the same training data),
+else ``model``. Fine-tuned on gentle driving, a model forgets the limit the start model
+knew; fitted on driving near the limit, it did better beyond its range on its own
+(docs/evaluation/fit-bags, "Beyond the recordings").
 """
 
 from __future__ import annotations

@@ -28,44 +28,25 @@ the LSTM; the head reads its output at the window's last step (the paper's Fig. 
   the window ends, so nothing can be shared between windows).
 
 Sample period: the model assumes rows ``dt_s`` apart (``metadata.dt_s``, the paper's
-2.5 ms). The back-end cannot see the input rate at start-up, so it does not check it:
-feeding another rate silently stretches the 250-ms horizon the network learned. The
-estimator's status reports the measured period; compare it with :attr:`dt_s`.
+2.5 ms). The back-end does not check the rows' rate; the estimator reads
+:attr:`sample_period_s` and keeps its input line at that step.
 
 Inputs and prior (:mod:`sideslip_msgs_py.model_inputs`): a model may read derived
-inputs (accelerations in g, road-wheel angle, ...) and its car's nominal parameters
-(``vehicle.*`` inputs), and may be a residual on a physics prior over the window; the
-same functions compute them here as in training. A model that reads the car takes it
-from ``pso_lstm.vehicle_file`` (a description YAML, see
-:class:`~sideslip_msgs_py.vehicle_description.VehicleDescription`, or a simulator
-vehicle file), else from the car stored in the model; without either it is refused at
-start-up. A model that reads the UKF observer (``ukf.*`` inputs or the ``ukf`` prior:
-a residual on the UKF) runs the ``ukf`` back-end beside its window, on every sample,
-with the filter settings stored in the model and the car's ``ukf`` params file
-(``pso_lstm.observer_params_file``, required for such a model); a window in which the
-filter gave no estimate for some row (below its speed, after a restart) gives none.
-A model that records its training cars' envelope (:mod:`.model_context`) is checked
-against the car of that params file; outside it, ``pso_lstm.outside_fleet`` chooses
-between the UKF's own estimate (the default for a residual on the UKF), the model's,
-or no start, and the status WARNs. With ``model_file`` empty the default follows what
-is given: ``fleet_ukf_paper`` (the
-kinematic inputs plus the UKF) when ``observer_params_file`` names the car's file, else
-``fleet_lstm_paper`` (the kinematic inputs only; nothing about the car needed).
+inputs, its car's nominal parameters and the UKF observer, and may be a residual on a
+physics prior over the window; the same functions compute them here as in training.
+Where the car and the observer come from, and what happens outside the training cars:
+:mod:`.model_context`. With ``model_file`` empty the default follows what is given:
+``fleet_ukf_paper`` when ``observer_params_file`` names the car's file, else
+``fleet_lstm_paper`` (:func:`.model_files.default_model`).
 
-Beyond a fine-tuned model's recordings: a model ``sideslip-fit --bags`` fine-tuned on one
-car records the range of the recordings it was fitted on (``FitRange`` in its σ). While
-the input window reaches beyond it, ``pso_lstm.beyond_fit_range`` chooses: ``start``
-publishes the estimate and σ of the model it was fine-tuned from (the node runs both,
-every sample), ``model`` this model's with σ widened, ``auto`` (default) ``start`` when
-the recordings were gentle (|a_y| under ``GENTLE_LATERAL_MPS2``) and that model is found
-(``start_model_file``, or the shipped model the file names with the same training data),
-else ``model``. Fine-tuned on gentle driving, a model forgets the limit the start model
-knew; fitted on driving near the limit, it did better beyond its range on its own
-(docs/evaluation/fit-bags, "Beyond the recordings").
+Beyond a fine-tuned model's recordings, ``pso_lstm.beyond_fit_range`` may publish the
+model it started from instead (run beside it): see :mod:`.model_files`.
 
-Variance: the square of the validation RMSE stored in the artifact
-(``metrics["val_rmse_deg"]``, in radians²); when the artifact has none,
-:data:`DEFAULT_SIGMA_RAD` (1°) squared. A constant, not a per-sample uncertainty.
+Variance: from the model's per-sample uncertainty (:mod:`sideslip_msgs_py.uncertainty`,
+``sideslip-calibrate``) at the newest row, widened while the window reaches beyond a
+fine-tuned model's recordings; a model without one (the paper reproductions) publishes
+the square of its stored validation RMSE (``metrics["val_rmse_deg"]``, in radians²), or
+:data:`DEFAULT_SIGMA_RAD` (1°) squared when it has none either.
 
 torch is imported only when the ``torch`` engine is built (:mod:`.torch_window`), never
 by this module's import, so the registry, the other back-ends and the default engine
@@ -89,7 +70,6 @@ from sideslip_msgs_py.model_inputs import (
     input_matrix,
     prior_of_window,
 )
-from sideslip_msgs_py.parameter_spec import ParameterSpec
 from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 
@@ -106,6 +86,7 @@ from .model_files import (
     read_model,
     start_model_name,
 )
+from .pso_lstm_parameters import PSO_LSTM_PARAMETERS
 from .torch_window import TorchWindow
 
 ENGINES: Final = ("numba", "numpy", "torch")
@@ -134,78 +115,7 @@ class PsoLstmBackend:
     """A trained LSTM/BiLSTM from a model artifact (see the module docstring)."""
 
     name = "pso_lstm"
-    parameters = (
-        ParameterSpec(
-            "model_file",
-            "",
-            "Model artifact (.safetensors written by sideslip-train), or the name of a "
-            "shipped model (sideslip_estimator/data/models/NAME.safetensors); empty = the "
-            "shipped default: fleet_ukf_paper when observer_params_file is set (kinematics "
-            "plus the UKF with the car's parameters), else fleet_lstm_paper (kinematics "
-            "only, no car parameters).",
-        ),
-        ParameterSpec(
-            "vehicle_file",
-            "",
-            "Nominal parameters (YAML) of the car, for a model that reads them (its "
-            "vehicle.* inputs, road-wheel angle, ...): mass_kg, wheelbase_m, "
-            "cg_to_front_axle_m, cg_height_m, track_m, stl_per_road_wheel_angle_m_per_rad, "
-            "tire_rolling_radius_m; or a simulator vehicle file. Empty = the car stored in "
-            "the model, if any.",
-        ),
-        ParameterSpec(
-            "observer_params_file",
-            "",
-            "The car's ukf params file (a shipped name or a YAML path written by `python -m "
-            "sideslip_sim.ukf_params VEHICLE`), for a model that reads the UKF observer "
-            "(ukf.* inputs or the ukf prior); unused otherwise.",
-        ),
-        ParameterSpec(
-            "outside_fleet",
-            "auto",
-            "For a model that reads the UKF and records its training cars' range: what to "
-            "do when the car (observer_params_file) lies outside it. prior: publish the "
-            "UKF's own estimate (the network's correction was learnt on other cars); "
-            "network: publish the model's estimate; refuse: do not start; auto: prior for "
-            "a residual on the UKF, network otherwise. Both publishing choices make the "
-            "node's status WARN.",
-        ),
-        ParameterSpec(
-            "beyond_fit_range",
-            "auto",
-            "For a model fine-tuned on one car's recordings (sideslip-fit --bags; its σ "
-            "records their range): what to publish while the input window reaches beyond "
-            "that range. start: the estimate and σ of the model it started from "
-            "(start_model_file), run beside it on every sample; model: this model's, σ "
-            "widened; auto: start when the recordings stayed under 5 m/s² of lateral "
-            "acceleration (gentle driving, where fine-tuning forgets the limit) and that "
-            "model is found, else model.",
-        ),
-        ParameterSpec(
-            "start_model_file",
-            "",
-            "The model a fine-tuned model_file started from (a path or a shipped name), for "
-            "beyond_fit_range; empty = the shipped model the file names as its start, if it "
-            "is shipped with the same training data.",
-        ),
-        ParameterSpec(
-            "engine",
-            "numba",
-            "numba: the streaming engine (all in-flight windows advance by one batched LSTM "
-            "step per sample; no torch needed) as one compiled float32 call per layer "
-            "(numpy when numba is not installed); numpy: the same in float64 numpy calls "
-            "(the exact reference, 2-3x slower); torch: the whole window per sample "
-            "through torch (the per-window path, bit for bit the trainer's network). A "
-            "stacked BiLSTM always takes torch.",
-        ),
-        ParameterSpec(
-            "threads",
-            1,
-            "CPU threads of the torch engine (torch.set_num_threads: process-wide). One is "
-            "fastest for a single 100-step window. The numpy engine uses numpy's BLAS "
-            "(OPENBLAS_NUM_THREADS).",
-        ),
-    )
+    parameters = PSO_LSTM_PARAMETERS
 
     def __init__(
         self,
