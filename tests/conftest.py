@@ -25,6 +25,8 @@ settings.load_profile("sideslip")
 @pytest.fixture
 def ros_domain() -> RosDomain:
     domain_id = next_domain()
+    # Also for rclpy in this process (a test's own context, the probe): loopback only.
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env = dict(os.environ)
     env.update(
         ROS_DOMAIN_ID=str(domain_id),
@@ -34,8 +36,27 @@ def ros_domain() -> RosDomain:
     return RosDomain(domain_id, env)
 
 
+@pytest.fixture(scope="session")
+def compiled_kernels() -> None:
+    """The simulator's and the LSTM engine's numba kernels, compiled (or loaded from the
+    cache) once in this process before any node is spawned.
+
+    numba checks its disk cache against each source file's modification time, so a fresh
+    clone compiles again. Without this the first sim or estimator child would compile
+    (about 15 s on an idle 2-core machine, more on a loaded one) inside a test's wait
+    for its messages; the children load what this wrote.
+    """
+    from sideslip_estimator.lstm_kernel import compile_kernels
+    from sideslip_sim.maneuvers import Maneuver
+    from sideslip_sim.simulate import simulate
+    from sideslip_sim.vehicle import load_vehicle
+
+    simulate(load_vehicle("paper_sedan"), Maneuver("warm_up", "straight", 0.01, 10.0, 0.0))
+    compile_kernels()
+
+
 @pytest.fixture
-def spawn(ros_domain: RosDomain, tmp_path: Path) -> Iterator[Spawner]:
+def spawn(ros_domain: RosDomain, tmp_path: Path, compiled_kernels: None) -> Iterator[Spawner]:
     """Start child processes in the test's domain; all are stopped at teardown."""
     spawner = Spawner(ros_domain.env, tmp_path)
     yield spawner

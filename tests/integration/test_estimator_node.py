@@ -123,6 +123,15 @@ def estimator(spawn, probe):
     wait_for(lambda: len(status) > 0, 30, "the estimator's first status")
     feeder = Feeder(probe)
     feeder.wait_matched()
+    # The probe's publishers have matched the node's subscriptions, but the node may learn
+    # of them later (discovery runs per participant) and drop what comes before: wait
+    # until its status names a publisher on each input.
+    wait_status(
+        status,
+        lambda lv, m, v: all(v.get(f"publishers[{t}]", "none") != "none" for t in feeder.pubs),
+        20,
+        "the node seeing the feeder's publishers",
+    )
     return Rig(child, feeder, beta, twist, status)
 
 
@@ -340,7 +349,7 @@ def test_one_late_message_costs_only_itself(estimator):
             # could otherwise drop the very message this test is about.
             time.sleep(0.05)
         feeder.send(feeder.sample(k))
-        time.sleep(0.001)
+        time.sleep(0.05 if k == 150 else 0.001)  # ... and again after it, for the same reason
     last = START_NS + 299 * DT_NS
     wait_for(lambda: twist and stamp_of(twist[-1].msg) == last, 10, "the last estimate")
 
