@@ -183,8 +183,12 @@ def test_bad_parameter_exits_2_naming_it(spawn, args, named):
 
 def test_watch_reports_the_estimate_against_ground_truth(spawn, probe):
     spawn("sideslip-estimator", "--ros-args", "-p", "backend:=kinematic")
-    watch = spawn("sideslip-watch", "--duration", "10", "--quiet")
     spawn("sideslip-sim", *sim_args("-p", "noise:=none", "-p", "loop:=true"))
+    # The watch's 10 s start when it does: start it once estimates flow, so that a slow
+    # start of the other two on a loaded machine does not eat its window.
+    beta = probe.subscribe(topics.SIDESLIP, Float64, profile_for(topics.SIDESLIP))
+    wait_for(lambda: len(beta) > 0, 60, "estimates from the sim through the estimator")
+    watch = spawn("sideslip-watch", "--duration", "10", "--quiet")
     assert watch.proc.wait(60) == 0, watch.output()
     summary = watch.output().strip().splitlines()[-1]
     assert "estimates against ground truth" in summary
