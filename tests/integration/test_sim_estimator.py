@@ -141,8 +141,9 @@ def test_signal_stops_the_sim_within_2_s_with_exit_0(spawn, probe, sig):
 
 
 def test_signal_during_the_pause_between_runs_stops_the_sim_at_once(spawn, probe):
-    imu = probe.subscribe(topics.IMU, Imu, profile_for(topics.IMU))
-    # 0.1-s runs at 1/20 of real time: 2 s of driving, then a 10-s pause between runs.
+    imu = subscribe_all(probe)[topics.IMU]
+    # 0.1-s runs at 1/20 of real time: 2 s of driving, then a 10-s pause between runs. The
+    # sim waits for the probe, which must hear 30 of the first run's 40 steps.
     sim = spawn(
         "sideslip-sim",
         "--ros-args",
@@ -154,6 +155,8 @@ def test_signal_during_the_pause_between_runs_stops_the_sim_at_once(spawn, probe
         "loop:=true",
         "-p",
         "real_time_factor:=0.05",
+        "-p",
+        "wait_for_subscribers:=1",
     )
     wait_for(lambda: len(imu) > 0, 30, "the sim publishing")
     n = len(imu)
