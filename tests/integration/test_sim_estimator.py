@@ -92,7 +92,9 @@ def test_sideslip_follows_ground_truth_on_a_noise_free_run(spawn, probe, backend
 def test_sim_publishes_one_stamp_per_step_at_400_hz_and_clock(spawn, probe):
     inboxes = subscribe_all(probe)
     imu, gt = inboxes[topics.IMU], inboxes[topics.GROUND_TRUTH_TWIST]
-    clock = probe.subscribe(topics.CLOCK, Clock, profile_for(topics.CLOCK))
+    deep_clock = profile_for(topics.CLOCK)  # a fresh profile: best effort, as published
+    deep_clock.depth = 100  # the probe's own queue, so its busy thread loses fewer ticks
+    clock = probe.subscribe(topics.CLOCK, Clock, deep_clock)
     sim = spawn(
         "sideslip-sim",
         *sim_args("-p", "publish_clock:=true", "-p", "wait_for_subscribers:=1"),
@@ -108,8 +110,8 @@ def test_sim_publishes_one_stamp_per_step_at_400_hz_and_clock(spawn, probe):
     assert set(stamps.tolist()) & {stamp_ns(r.msg) for r in gt}
     clock_ns = np.array([r.msg.clock.sec * 10**9 + r.msg.clock.nanosec for r in clock])
     assert clock_ns.size > 1000 and np.all(np.diff(clock_ns) > 0)
-    # /clock is best effort, keep last 1 (what rclpy's time source asks for): the probe
-    # may miss a tick, but every tick is a step's stamp.
+    # /clock is best effort (rclpy's time source asks for keep last 1): the probe may
+    # miss a tick, but every tick is a step's stamp.
     assert np.all((clock_ns - stamps[0]) % 2_500_000 == 0)
 
 
