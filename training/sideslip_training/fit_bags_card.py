@@ -252,7 +252,7 @@ OWN_DRIVES_CAUTION = (
     "test part (0.053° against 0.060°) but not on other drives of the cars (0.031° against "
     "the shipped model's 0.028° with the identified `ukf` file); kept half way from the "
     "start (`--interpolate 0.5`) they beat it there by 6 % (0.0265°, worse on 1 of 6); from "
-    "`fleet_ukf_ensemble` with 5 minutes of driving (a quarter of the way) by 5 %, on all 6, "
+    "`fleet_ukf_ensemble` with 5 minutes of driving (a quarter of the way) by 3.5 %, on all 6, "
     "but on eight validation cars such fits beat the start by only 3 % and were 27 % worse "
     "on one: before deploying, compare both on a recording the fit never saw. "
 )
