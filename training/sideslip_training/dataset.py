@@ -2,8 +2,9 @@
 
 The pipeline, each step a plain function or frozen dataclass:
 
-1. :func:`find_bags` resolves the user's paths to bags (rosbag2 directories or bare
-   ``.mcap`` files, or folders holding them, such as the output of ``sideslip-generate``).
+1. :func:`~sideslip_training.bag_paths.find_bags` resolves the user's paths to bags
+   (rosbag2 directories or bare ``.mcap`` files, or folders holding them, such as the
+   output of ``sideslip-generate``); imported here, with :class:`DatasetError`.
 2. :func:`load_runs` reads each bag with :func:`sideslip_msgs_py.bag.read_bag` (samples
    aligned on the IMU stamp) into :class:`Run` records and a :class:`DatasetReport`.
    Nothing is dropped silently: bags without ground truth, unreadable or truncated bags,
@@ -17,9 +18,9 @@ The pipeline, each step a plain function or frozen dataclass:
 
 :func:`data_digest` fingerprints the runs for provenance.
 
-This module holds steps 1-2 only and does not re-export the other two: they build on
-:class:`Run` and :class:`DatasetError` from here, so a re-export would make an import
-cycle. Import ``Normalizer`` from ``sideslip_training.normalize`` and ``WindowIndex`` /
+This module holds step 2 and re-exports step 1 (:mod:`.bag_paths`), but not steps 3-5:
+they build on :class:`Run` and :class:`DatasetError` from here, so a re-export would make
+an import cycle. Import ``Normalizer`` from ``sideslip_training.normalize`` and ``WindowIndex`` /
 ``TorchWindows`` from ``sideslip_training.windows``.
 
 Units: features keep the units of :data:`sideslip_msgs_py.features.CHANNELS` (m/s, m/s²,
@@ -47,6 +48,7 @@ from sideslip_msgs_py.sample import SampleArrays
 from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
+from .bag_paths import DatasetError, find_bags
 from .dataset_report import DatasetReport
 
 BETA: Final = "beta_rad"
@@ -57,65 +59,6 @@ MIN_REFERENCE_SPEED_MPS: Final = 1.0
 is no target: atan2(v_y, v_x) of a car at rest is the angle of the reference's noise,
 and the estimator node publishes nothing below its ``min_speed_mps`` (default the same
 1 m/s). A real recording that starts at rest would otherwise train on angles of ±180°."""
-
-
-class DatasetError(ValueError):
-    """Bags that cannot make a dataset; the message names the path, bag or setting at fault."""
-
-
-# --- finding bags ---------------------------------------------------------------------------
-
-
-def _is_bag_dir(path: Path) -> bool:
-    return path.is_dir() and (path / "metadata.yaml").is_file()
-
-
-def _bags_in(path: Path) -> list[Path]:
-    """Bags at ``path``: itself, or its .mcap files, or the bags one level below it."""
-    if path.is_file() and path.name == "metadata.yaml":
-        path = path.parent
-    if path.is_file():
-        return [path] if path.suffix == ".mcap" else []
-    if _is_bag_dir(path):
-        return [path]
-    # A directory of bare .mcap files (or a bag directory whose metadata.yaml was lost:
-    # read_bag reads each .mcap alone, and the run metadata is inside the .mcap too).
-    found = sorted(path.glob("*.mcap"))
-    for child in sorted(path.iterdir()):
-        if _is_bag_dir(child):
-            found.append(child)
-        elif child.is_dir():
-            found.extend(sorted(child.glob("*.mcap")))
-    return found
-
-
-def find_bags(paths: Sequence[str | Path]) -> list[Path]:
-    """Resolve user paths to the bags they name, sorted and without duplicates.
-
-    Each path is a rosbag2 directory (holding metadata.yaml), a bare ``.mcap`` file, a
-    directory of bare ``.mcap`` files, or a folder holding such bags one level down (e.g.
-    a ``sideslip-generate`` output with its index.json, which is ignored).
-
-    Raises:
-        DatasetError: a path does not exist or holds no bag (the message names it).
-    """
-    if isinstance(paths, str | Path):
-        paths = [paths]
-    bags: set[Path] = set()
-    for raw in paths:
-        path = Path(raw)
-        if not path.exists():
-            msg = f"{path}: no such file or directory (expected a bag or a folder of bags)"
-            raise DatasetError(msg)
-        found = _bags_in(path)
-        if not found:
-            msg = (
-                f"{path}: holds no bag (expected a rosbag2 directory with metadata.yaml, "
-                "an .mcap file, or a folder of them)"
-            )
-            raise DatasetError(msg)
-        bags.update(p.resolve() for p in found)
-    return sorted(bags)
 
 
 # --- runs and the report ----------------------------------------------------------------------
@@ -414,3 +357,16 @@ def data_digest(runs: Iterable[Run]) -> str:
                 h.update(f"{f.name}\x00".encode())
                 h.update(np.ascontiguousarray(col, dtype=col.dtype.newbyteorder("<")).tobytes())
     return h.hexdigest()
+
+
+__all__ = [
+    "BETA",
+    "MIN_REFERENCE_SPEED_MPS",
+    "DatasetError",
+    "Run",
+    "data_digest",
+    "find_bags",
+    "load_runs",
+    "slice_samples",
+    "without_slow_targets",
+]
