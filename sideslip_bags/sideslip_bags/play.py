@@ -321,14 +321,16 @@ class Player(Node):
         stamp.sec, stamp.nanosec = divmod(now_ns, 1_000_000_000)
         self._clock_pub.publish(self._clock_msg)
 
-    def close(self) -> None:
-        """Stop the publishing thread and log what was played."""
+    def close(self) -> bool:
+        """Stop the publishing thread and log what was played; False if the thread is
+        still running after the timeout (the node must then not be destroyed under it)."""
         self._flag.set()
         self._worker.join(JOIN_TIMEOUT_S)
         self.get_logger().info(
             f"played {sum(self.counts.values())} messages in {self.passes} pass(es): "
             f"{format_counts(self.counts)}"
         )
+        return not self._worker.is_alive()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

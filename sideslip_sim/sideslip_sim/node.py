@@ -134,9 +134,12 @@ class SimNode(rclpy.node.Node):
                     publish(messages[i].tobytes())
                 self.pacer.count_published()
 
-    def close(self) -> None:
+    def close(self) -> bool:
+        """Stop the publishing thread; False if it is still running after 2 s (then the
+        node must not be destroyed under it: :func:`~sideslip_msgs_py.nodes.runtime.run`)."""
         self._flag.set()
         self._thread.join(timeout=2.0)
+        return not self._thread.is_alive()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

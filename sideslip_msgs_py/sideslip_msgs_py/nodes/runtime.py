@@ -115,6 +115,11 @@ def run(
     ``make_node`` may raise ``SystemExit`` (bad parameters): the exit code is passed on
     after rclpy is shut down. The node may also set the flag itself when its work is
     done (a player at the end of a bag). Returns the process exit code.
+
+    A node's ``close()`` that returns ``False`` says one of its threads still uses it
+    (a publisher that did not stop in time): the node is then neither destroyed nor is
+    rclpy shut down, since either under a running thread can crash the process or raise
+    in that thread; the thread ends on the flag and the process exits after it.
     """
     flag = StopFlag()
     install_signal_handlers(flag)
@@ -135,15 +140,23 @@ def run(
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        released = True
         if node is not None:
             close = getattr(node, "close", None)
             if close is not None:
-                close()
-            executor.remove_node(node)
-            node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
-        if rclpy.ok():
-            rclpy.shutdown()
+                released = close() is not False
+            if released:
+                executor.remove_node(node)
+                node.destroy_node()
+            else:
+                print(
+                    "a worker thread is still running: leaving the node to it until it ends",
+                    file=sys.stderr,
+                )
+        if released:
+            executor.shutdown(timeout_sec=1.0)
+            if rclpy.ok():
+                rclpy.shutdown()
     if flag.signal_name == "error":  # the node failed after start-up (it logged why)
         code = code or 1
     return code
