@@ -129,7 +129,6 @@ class Probe:
 
         from sideslip_msgs_py.nodes.runtime import SpinThread, make_executor
 
-        self.rclpy = rclpy
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node(name, context=self.context)
@@ -174,9 +173,7 @@ class Probe:
     def close(self) -> None:
         # The spin thread leaves the executor before anything is destroyed: destroying
         # a node under a spinning thread once crashed the pytest process (SIGSEGV).
-        if not self._spinner.stop():
-            pytest.fail(f"{self.node.get_name()}: spin thread still inside the executor")
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        if self.context.ok():
-            self.rclpy.shutdown(context=self.context)
+        try:
+            self._spinner.close(self.node)
+        except RuntimeError as err:
+            pytest.fail(str(err))

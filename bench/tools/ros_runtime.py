@@ -88,11 +88,7 @@ class Listener:
             self.twist.append((now, stamp_ns(msg)))
 
     def close(self) -> None:
-        if not self._spinner.stop():  # destroying under a spinning thread can segfault
-            raise RuntimeError("bench listener: spin thread still inside the executor")
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
+        self._spinner.close(self.node)  # in the order that cannot segfault
 
 
 def _stop(proc: subprocess.Popen[bytes]) -> int:

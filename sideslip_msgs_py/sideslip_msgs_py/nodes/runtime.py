@@ -73,6 +73,17 @@ class SpinThread:
         self._thread.join(timeout_s)
         return not self._thread.is_alive()
 
+    def close(self, node: Any) -> None:
+        """Stop spinning, then shut down the executor, destroy ``node`` and shut down the
+        context, in that order. Raises RuntimeError (destroying nothing) if the thread
+        does not leave the executor."""
+        if not self.stop():
+            raise RuntimeError(f"{node.get_name()}: spin thread still inside the executor")
+        self._executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        if self._context.ok():
+            rclpy.shutdown(context=self._context)
+
 
 class StopFlag:
     """Set by SIGINT/SIGTERM (or by a node that has finished its work)."""
