@@ -229,8 +229,19 @@ class Uncertainty:
     kind: str = KIND
     fit_range: FitRange | None = None
     """Where ``scale`` holds, for a model fine-tuned on one car (None: everywhere)."""
+    described: Uncertainty | None = None
+    """The σ to publish instead when the car's ``ukf`` file was made from a description
+    (``axles_from: description``: the fleet's typical tyres, not the car's), for a model
+    that reads the UKF: calibrated with such files (``sideslip-calibrate --car
+    described``). None: this σ for every file."""
 
     def __post_init__(self) -> None:
+        if self.described is not None and (
+            self.described.described is not None or self.described.fit_range is not None
+        ):
+            raise UncertaintyError(
+                "uncertainty.described: has no described or fit_range of its own"
+            )
         if self.kind != KIND:
             raise UncertaintyError(f"uncertainty: unknown kind {self.kind!r} (known: {KIND})")
         c = tuple(float(x) for x in self.coefficients)
@@ -250,6 +261,14 @@ class Uncertainty:
             )
         object.__setattr__(self, "scale", float(self.scale))
         object.__setattr__(self, "coverage", float(self.coverage))
+
+    def for_axles(self, axles_from: str) -> Uncertainty:
+        """The σ model to publish for a car file whose axle curves come from
+        ``axles_from`` (``sideslip_estimator.backends.ukf_model.AXLES_FROM``): the
+        :attr:`described` one for ``description`` where there is one, else this."""
+        if axles_from == "description" and self.described is not None:
+            return self.described
+        return self
 
     def variance(
         self,
@@ -308,13 +327,16 @@ class Uncertainty:
         }
         if self.fit_range is not None:
             out["fit_range"] = self.fit_range.to_dict()
+        if self.described is not None:
+            out["described"] = self.described.to_dict()
         return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Uncertainty:
         if not isinstance(data, Mapping):
             raise UncertaintyError(f"uncertainty must be a JSON object, got {type(data).__name__}")
-        unknown = set(data) - {"kind", "terms", "coefficients", "scale", "coverage", "fit_range"}
+        known = {"kind", "terms", "coefficients", "scale", "coverage", "fit_range", "described"}
+        unknown = set(data) - known
         if unknown:
             raise UncertaintyError(f"uncertainty: unknown key(s) {sorted(unknown)}")
         if list(data.get("terms", TERMS)) != list(TERMS):
@@ -326,6 +348,19 @@ class Uncertainty:
                 float(data.get("coverage", 0.95)),
                 str(data.get("kind", KIND)),
                 None if data.get("fit_range") is None else FitRange.from_dict(data["fit_range"]),
+                None if data.get("described") is None else cls._described_of(data["described"]),
             )
         except (KeyError, TypeError) as err:
             raise UncertaintyError(f"uncertainty: missing or malformed {err}") from None
+
+    @classmethod
+    def _described_of(cls, data: Any) -> Uncertainty:
+        if not isinstance(data, Mapping):
+            raise UncertaintyError(
+                f"uncertainty.described must be a JSON object, got {type(data).__name__}"
+            )
+        try:
+            return cls.from_dict(data)
+        except UncertaintyError as err:
+            msg = str(err).replace("uncertainty", "uncertainty.described", 1)
+            raise UncertaintyError(msg) from None

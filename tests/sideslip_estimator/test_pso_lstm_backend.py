@@ -473,3 +473,64 @@ def test_the_shipped_default_publishes_a_sigma_that_follows_the_driving() -> Non
     cruising = variance(30.0, 0.0, 0.0)
     assert variance(5.0, 0.0, 0.0) > 10 * cruising
     assert variance(30.0, 8.0, 0.0) > cruising  # a_y without the matching yaw rate: β̇ ≠ 0
+
+
+def test_a_car_file_made_from_a_description_gets_the_models_sigma_for_such_files(
+    tmp_path: Path,
+) -> None:
+    """The same model and car: with the file marked ``axles_from: description`` the node
+    publishes the σ calibrated with described files, and says so in its model id."""
+    import dataclasses
+
+    import yaml
+
+    from sideslip_estimator.backends.ukf_model import UkfParams
+    from sideslip_estimator.inputs import X_V, Y_A, YAW_RATE
+    from sideslip_msgs_py.artifact import write_artifact
+    from sideslip_msgs_py.uncertainty import Uncertainty
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_sim.vehicle import load_vehicle
+    from sideslip_training.init_model import resolve
+
+    tensors, meta = read_artifact(resolve("fleet_ukf_measurable"))
+    own = Uncertainty.from_dict(meta.uncertainty)
+    described = Uncertainty((0.0, 3e-5, 2e-7, 5e-4), 2.0 * own.scale)
+    both = dataclasses.replace(own, described=described)
+    model = write_artifact(
+        tmp_path / "m.safetensors", tensors, dataclasses.replace(meta, uncertainty=both.to_dict())
+    )
+    car = dataclasses.asdict(UkfParams.load("compact_rwd"))
+    vehicle = tmp_path / "car.yaml"
+    desc = VehicleDescription.from_mapping(dataclasses.asdict(load_vehicle("compact_rwd")))
+    vehicle.write_text(yaml.safe_dump(desc.to_dict()))
+    files = {}
+    for source in ("vehicle", "description"):
+        path = tmp_path / f"{source}.ukf.yaml"
+        path.write_text(yaml.safe_dump({**car, "axles_from": source}))
+        files[source] = PsoLstmBackend(
+            {
+                "model_file": str(model),
+                "observer_params_file": str(path),
+                "vehicle_file": str(vehicle),
+                "outside_fleet": "network",
+            },
+            WINDOW,
+        )
+    assert "σ for a described car file" in files["description"].model_id
+    assert "described" not in files["vehicle"].model_id
+    rows, stamps = make_rows(2 * WINDOW, seed=2)
+    seen = 0
+    for k in range(WINDOW, rows.shape[0] + 1):
+        w = slice(k - WINDOW, k)
+        mine, plain = (
+            files["description"].update(rows[w], stamps[w]),
+            files["vehicle"].update(rows[w], stamps[w]),
+        )
+        if mine is None:
+            continue
+        assert plain is not None and mine.beta_rad == plain.beta_rad  # the same filter
+        x_v, a_y, r = (float(rows[k - 1, i]) for i in (X_V, Y_A, YAW_RATE))
+        assert mine.variance_rad2 == pytest.approx(described.variance_of(x_v, a_y, r))
+        assert plain.variance_rad2 == pytest.approx(own.variance_of(x_v, a_y, r))
+        seen += 1
+    assert seen > 0

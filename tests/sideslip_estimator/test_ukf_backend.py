@@ -441,3 +441,23 @@ def test_variance_comes_from_the_covariance_of_v_y_over_v_x_squared() -> None:
     p_vy = backend.state_sigma["v_y_mps"] ** 2
     # β ≈ v_y/v_x for small β: var(β) ≈ P_vy,vy / v_x².
     assert est.variance_rad2 == pytest.approx(p_vy / v_x**2, rel=0.05)
+
+
+@pytest.mark.parametrize("source", ["vehicle", "recordings", "description"])
+def test_a_params_file_may_say_where_its_axle_curves_come_from(tmp_path: Path, source: str) -> None:
+    plain = tmp_path / "plain.yaml"
+    plain.write_text(yaml.safe_dump(_good_mapping()))
+    marked = tmp_path / "marked.yaml"
+    marked.write_text(yaml.safe_dump(_good_mapping() | {"axles_from": source}))
+    a = create_backend("ukf", {"params_file": str(plain)}, 100).params
+    b = create_backend("ukf", {"params_file": str(marked)}, 100).params
+    assert a.axles_from == "vehicle" and b.axles_from == source
+    assert a == b  # the filter reads the same car
+
+
+def test_an_unknown_axle_source_is_refused_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump(_good_mapping() | {"axles_from": "guess"}))
+    with pytest.raises(BackendError, match=r"axles_from must be one of .*'guess'") as info:
+        create_backend("ukf", {"params_file": str(path)}, 100)
+    assert str(path) in str(info.value)

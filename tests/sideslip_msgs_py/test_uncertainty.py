@@ -171,3 +171,38 @@ def test_the_estimators_window_check_agrees_with_the_per_sample_flags(
     a = np.asarray(a_y)
     vs, rs = np.full(a.size, v), np.full(a.size, r)
     assert fit.reaches_beyond(vs, a, rs) == bool(fit.beyond(vs[-5:], a[-5:], rs[-5:]).any())
+
+
+DESCRIBED = Uncertainty((0.0, 4e-5, 1e-7, 3e-4), 1.4)
+
+
+def test_the_sigma_for_described_car_files_is_chosen_only_for_them_and_survives_the_file() -> None:
+    unc = Uncertainty(UNC.coefficients, 0.9, described=DESCRIBED)
+    assert unc.for_axles("description") is DESCRIBED
+    for other in ("vehicle", "recordings"):
+        assert unc.for_axles(other) is unc
+    assert UNC.for_axles("description") is UNC  # none stored: the one σ for every file
+    assert Uncertainty.from_dict(unc.to_dict()) == unc
+    assert "described" not in UNC.to_dict()
+    ratio = unc.for_axles("description").variance_of(20.0, 3.0, 0.1) / unc.variance_of(
+        20.0, 3.0, 0.1
+    )
+    assert ratio != pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(
+    ("described", "named"),
+    [
+        ({"coefficients": [1, 2, 3], "scale": 1.0}, "uncertainty.described: coefficients"),
+        ([1, 2], "uncertainty.described must be a JSON object"),
+        (
+            {**DESCRIBED.to_dict(), "described": DESCRIBED.to_dict()},
+            "uncertainty.described: has no described or fit_range",
+        ),
+    ],
+)
+def test_a_bad_sigma_for_described_files_is_refused_naming_it(
+    described: object, named: str
+) -> None:
+    with pytest.raises(UncertaintyError, match=named):
+        Uncertainty.from_dict({**UNC.to_dict(), "described": described})

@@ -204,3 +204,68 @@ def test_errors_given_by_the_caller_calibrate_as_running_the_model_again(
     for name in ("err", "v", "ay", "r", "run", "beyond"):
         np.testing.assert_array_equal(getattr(cut, name), getattr(alone, name), err_msg=name)
     assert calibrate(runs, net, meta, car=car, errors=errors) == calibrate(runs, net, meta, car=car)
+
+
+def test_described_car_files_get_a_sigma_of_their_own_beside_the_models(
+    foreign_bags, compact_rwd_description: Path, tmp_path: Path, capsys
+) -> None:
+    """Calibrated with the car file made from the car's description, the model keeps its
+    σ for other files and gains one for described files; sideslip-evaluate publishes
+    each with its kind of file, as the node does."""
+    from dataclasses import replace
+    from importlib import resources
+
+    from sideslip_msgs_py.topic_map import TopicMap
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+    from sideslip_training.car_description import Description
+    from sideslip_training.dataset import load_runs
+    from sideslip_training.evaluate import evaluate_runs
+    from sideslip_training.export import load_model
+    from sideslip_training.init_model import resolve
+
+    folder, topic_map = foreign_bags
+    described = tmp_path / "described.ukf.yaml"
+    described.write_text(Description.load(compact_rwd_description).ukf_params_yaml())
+    given = ["--data", str(folder), "--topic-map", str(topic_map), "--vehicle",
+             str(compact_rwd_description), "--car", "given", "--scale-only"]  # fmt: skip
+    out = tmp_path / "mine.safetensors"
+    code = main(["--model", "fleet_ukf_measurable", *given, "--observer-params", str(described),
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "σ for car files made from a description" in capsys.readouterr().err
+    shipped = Uncertainty.from_dict(read_artifact(resolve("fleet_ukf_measurable"))[1].uncertainty)
+    mine = Uncertainty.from_dict(read_artifact(out)[1].uncertainty)
+    assert replace(mine, described=None) == shipped
+    assert mine.described is not None and mine.described.scale != pytest.approx(shipped.scale)
+    # Calibrating the model's own σ again keeps the one for described files.
+    own = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
+    again = tmp_path / "again.safetensors"
+    code = main(["--model", str(out), *given, "--observer-params", str(own), "--out",
+                 str(again)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert Uncertainty.from_dict(read_artifact(again)[1].uncertainty).described == mine.described
+
+    net, meta = load_model(out)
+    runs, _ = load_runs([folder], step_s=meta.dt_s, topic_map=TopicMap.load(topic_map))
+    vehicle = VehicleDescription.load(compact_rwd_description)
+    for ukf, unc in ((described, mine.described), (own, shipped)):
+        files = {"vehicle": vehicle, "observer_params_file": str(ukf), "car": "given"}
+        traces = evaluate_runs(
+            runs[:1], [("m", net, meta)], window_steps=meta.window_steps, **files
+        )
+        (trace,) = (t for t in traces if t.estimator == "m")
+        s = runs[0].samples
+        want = np.sqrt(unc.variance(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps))
+        np.testing.assert_allclose(trace.sigma_rad, want[meta.window_steps - 1 :], rtol=1e-12)
+
+
+def test_a_mix_of_described_and_other_car_files_is_refused(sim_bag_dir: Path, tmp_path, capsys):
+    """``--car mixed`` gives half the bags their described car: one σ cannot be both."""
+    from sideslip_training.observer import described_half
+
+    halves = {described_half(p.name) for p in sim_bag_dir.iterdir() if p.is_dir()}
+    assert halves == {True, False}  # the fixture's bags fall on both sides
+    code = main(["--model", "fleet_ukf_measurable", "--data", str(sim_bag_dir), "--car",
+                 "mixed", "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
+    assert code == 2
+    assert "mix described cars" in capsys.readouterr().err

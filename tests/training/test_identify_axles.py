@@ -53,6 +53,18 @@ def test_a_description_is_a_start(foreign_bags, compact_rwd_description, tmp_pat
     text = out.read_text()
     assert "starting from the description" in text
     assert UkfParams.load(str(out)).name == "my_car"
+    # Identified axles are the car's own: the model's σ for described files is not used.
+    assert UkfParams.load(str(out)).axles_from == "recordings"
+
+
+def test_the_file_made_from_a_description_says_its_axles_are_described(
+    compact_rwd_description, tmp_path
+):
+    from sideslip_training.car_description import Description
+
+    path = tmp_path / "described.ukf.yaml"
+    path.write_text(Description.load(compact_rwd_description).ukf_params_yaml())
+    assert UkfParams.load(str(path)).axles_from == "description"
 
 
 def test_an_existing_out_is_not_replaced_without_force(foreign_bags, true_file, tmp_path, capsys):

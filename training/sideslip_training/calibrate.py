@@ -235,6 +235,37 @@ def calibrate(
     return unc, report
 
 
+def for_described_files(runs: Sequence[Run], meta, car: dict[str, Any]) -> bool:  # type: ignore[no-untyped-def]
+    """Whether the calibration is the σ for car files made from a description: every
+    run's UKF file is one (``--car described``, or ``--car given`` with such a file).
+    Raises DatasetError for a mix, or where the model has no σ of its own to keep."""
+    if not meta.needs_observer:
+        return False
+    from .observer import axles_from
+
+    kinds = {
+        axles_from(r, car["observer_params_file"], car=car["car"]) == "description" for r in runs
+    }
+    if kinds != {True}:
+        if len(kinds) > 1:
+            raise DatasetError(
+                "the runs' UKF files mix described cars (axles_from: description) and others: "
+                "calibrate each kind on its own (--car described, --car recorded)"
+            )
+        return False
+    unc = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
+    if unc is None or unc.fit_range is not None:
+        raise DatasetError(
+            "a σ for described car files is kept beside the model's own σ: "
+            + (
+                "calibrate that first, with true or identified car files"
+                if unc is None
+                else "this model's σ was fitted on one car's recordings, which read one file"
+            )
+        )
+    return True
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sideslip-calibrate",
@@ -260,6 +291,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")
+    p.epilog = (
+        "For a model that reads the UKF, runs whose car files were made from a description "
+        "(--car described, or a file with axles_from: description) calibrate the σ the "
+        "node publishes with such files; the model's σ for other files is kept."
+    )
     return p
 
 
@@ -283,6 +319,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "observer_params_file": str(args.observer_params) if args.observer_params else None,
             "car": args.car,
         }
+        described = for_described_files(runs, meta, car)
         unc, figures = calibrate(
             runs,
             model,
@@ -292,6 +329,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             scale_only=args.scale_only,
             car=car,
         )
+        # The same network: the σ for the other kind of car file still holds.
+        old = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
+        if described:
+            assert old is not None  # for_described_files checks it
+            unc = replace(old, described=replace(unc, fit_range=None))
+        elif old is not None:
+            unc = replace(unc, described=old.described)
     except (
         DatasetError,
         ArtifactError,
@@ -302,6 +346,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ) as err:
         print(f"sideslip-calibrate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if described:
+        print("calibrated the σ for car files made from a description (axles_from: "
+              "description); the model's σ for other files is kept", file=sys.stderr)  # fmt: skip
+    shown = unc.described if described and unc.described is not None else unc
     out_meta = replace(
         meta,
         uncertainty=unc.to_dict(),
@@ -310,10 +358,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     write_artifact(args.out, tensors, out_meta, force=args.force)
     print(
-        f"wrote {args.out}: σ² = {unc.scale:.3f}² · ("
-        + " + ".join(f"{c:.3g}·{t}" for c, t in zip(unc.coefficients, TERMS, strict=True))
+        f"wrote {args.out}: σ² = {shown.scale:.3f}² · ("
+        + " + ".join(f"{c:.3g}·{t}" for c, t in zip(shown.coefficients, TERMS, strict=True))
         + f"); {figures['coverage_scale_half']:.3f} of the scale half's samples inside "
-        f"±{z_of(unc.coverage):.2f}σ; per run {figures['coverage_per_run_min']:.3f} (min) to "
+        f"±{z_of(shown.coverage):.2f}σ; per run {figures['coverage_per_run_min']:.3f} (min) to "
         f"{figures['coverage_per_run_median']:.3f} (median), a constant σ: "
         f"{figures['constant_sigma_coverage_per_run_min']:.3f} to "
         f"{figures['constant_sigma_coverage_per_run_median']:.3f}"

@@ -75,12 +75,11 @@ class Description:
 
         from .physics_params import nominal_parameters, params_yaml
 
-        return params_yaml(
-            "ukf",
-            self.name,
-            nominal_parameters("ukf", vehicle_record(self.vehicle())),
-            "sideslip-fit from the description",
-        )
+        values = nominal_parameters("ukf", vehicle_record(self.vehicle()))
+        # The tyres are the fleet's typical ones, not this car's: a model reading the UKF
+        # publishes its σ for described files with it (ukf_model.AXLES_FROM).
+        values["axles_from"] = "description"
+        return params_yaml("ukf", self.name, values, "sideslip-fit from the description")
 
     def digest(self) -> str:
         text = json.dumps([self.nominal.to_dict(), self.layout], sort_keys=True)

@@ -302,10 +302,9 @@ def evaluate_runs(
                 raise ValueError(f"{name}: window {meta.window_steps} != {window_steps}")
             est = predict_run(model, meta, run, **car_kwargs)
             var = None
-            if meta.uncertainty is not None:
-                var = Uncertainty.from_dict(meta.uncertainty).variance(
-                    s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
-                )[window_steps - 1 :]
+            unc = published_uncertainty(meta, run, observer_params_file, car)
+            if unc is not None:
+                var = unc.variance(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[window_steps - 1 :]
             start = starts[name]
             if start is not None:
                 # As the node: beyond the recordings' range the start model's estimate
@@ -320,9 +319,11 @@ def evaluate_runs(
                 if vehicle is None and meta.vehicle is not None:
                     start_car["vehicle"] = VehicleDescription.from_mapping(meta.vehicle)
                 est = np.where(gate, predict_run(start_net, start_meta, run, **start_car), est)
-                start_var = Uncertainty.from_dict(start_meta.uncertainty).variance(
-                    s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps
-                )[window_steps - 1 :]
+                start_unc = published_uncertainty(start_meta, run, observer_params_file, car)
+                assert start_unc is not None
+                start_var = start_unc.variance(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[
+                    window_steps - 1 :
+                ]
                 var = np.where(gate, start_var, var)
             estimators.append((name, est))
             if var is not None:
@@ -330,6 +331,22 @@ def evaluate_runs(
         for name, est in estimators:
             traces.append(Trace(run.name, name, t, est, ref, sigmas.get(name)))
     return traces
+
+
+def published_uncertainty(
+    meta: ModelMetadata, run: Run, observer_params_file: str | None, car: str
+) -> Uncertainty | None:
+    """The σ model the node publishes for ``meta`` on ``run``'s car (None without one):
+    for a model that reads the UKF and stores a σ for described car files, that one
+    where the run's UKF file was made from a description (``axles_from``)."""
+    if meta.uncertainty is None:
+        return None
+    unc = Uncertainty.from_dict(meta.uncertainty)
+    if unc.described is None or not meta.needs_observer:
+        return unc
+    from .observer import axles_from
+
+    return unc.for_axles(axles_from(run, observer_params_file, car=car))
 
 
 class StartModelError(ValueError):

@@ -98,7 +98,8 @@ def identified_file_text(found: Any, recordings: int, source: str, fallback_name
         f"rear {found.stiffness_ratio_rear:.3f}; {found.points} points, residual RMS "
         f"{found.rms_front:.3f} / {found.rms_rear:.3f} of the axle load.",
     ]
-    return "\n".join(lines) + "\n" + yaml.safe_dump(found.params, sort_keys=False)
+    params = {**found.params, "axles_from": "recordings"}
+    return "\n".join(lines) + "\n" + yaml.safe_dump(params, sort_keys=False)
 
 
 def _parser() -> argparse.ArgumentParser:

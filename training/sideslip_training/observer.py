@@ -96,7 +96,15 @@ def described_half(bag: str) -> bool:
 def params_of_described(vehicle: Mapping[str, Any]) -> dict[str, Any]:
     """The ``ukf`` params of the car a simulated car's description stands for: what a
     user who knows only the description gives the node (:mod:`sideslip_sim.described_car`)."""
-    return dict(_params_of_described(json.dumps(dict(vehicle), sort_keys=True, default=str)))
+    params = _params_of_described(json.dumps(dict(vehicle), sort_keys=True, default=str))
+    return {**params, "axles_from": "description"}
+
+
+def axles_from(run: Run, params_file: str | None, *, car: str = "recorded") -> str:
+    """Where the axle curves of ``run``'s UKF come from (``ukf_model.AXLES_FROM``), as
+    :func:`run_params` gives that filter its file: for ``description`` a model's σ for
+    described files is published (``Uncertainty.for_axles``)."""
+    return str(run_params(run, params_file, car=car)[0].get("axles_from", "vehicle"))
 
 
 @functools.lru_cache(maxsize=256)
@@ -169,7 +177,9 @@ def training_envelope(
 
 def _digest(run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float) -> str:
     h = hashlib.sha256()
-    key = {"v": CACHE_VERSION, "params": params, "values": values, "stl": stl}
+    # Where the axle curves came from is not read by the filter: the same columns.
+    filtered = {k: v for k, v in params.items() if k != "axles_from"}
+    key = {"v": CACHE_VERSION, "params": filtered, "values": values, "stl": stl}
     h.update(json.dumps(key, sort_keys=True, default=str).encode())
     s = run.samples
     for c in ("stamp_ns", "x_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m"):

@@ -30,6 +30,7 @@ from sideslip_msgs_py.fleet_envelope import (
     FleetEnvelope,
     publishes_prior,
 )
+from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
 from .base import BackendError
@@ -77,6 +78,21 @@ def observer_for(
         return UkfBackend({**meta.observer, "params_file": params_file}, window_steps)
     except BackendError as err:
         raise BackendError(f"pso_lstm.observer_params_file: {err}") from None
+
+
+def published_uncertainty(
+    meta: ModelMetadata, observer: UkfBackend | None
+) -> tuple[Uncertainty | None, bool]:
+    """(the σ model to publish, whether it is the one for described car files). A car
+    file made from a description guesses the tyres; a model that reads the UKF errs more
+    with it, and its σ for such files (``Uncertainty.described``) was calibrated with them."""
+    if meta.uncertainty is None:
+        return None, False
+    unc = Uncertainty.from_dict(meta.uncertainty)
+    if observer is None:
+        return unc, False
+    chosen = unc.for_axles(observer.params.axles_from)
+    return chosen, chosen is not unc
 
 
 def fleet_check(

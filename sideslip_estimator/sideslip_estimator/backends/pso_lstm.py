@@ -70,7 +70,6 @@ from sideslip_msgs_py.model_inputs import (
     input_matrix,
     prior_of_window,
 )
-from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from ..inputs import X_V as _X_V
@@ -78,7 +77,7 @@ from ..inputs import Y_A as _Y_A
 from ..inputs import YAW_RATE as _YAW_RATE
 from ..streaming_members import streaming_engine
 from .base import BackendError, Estimate, parameter_values
-from .model_context import fleet_check, observer_for, vehicle_for
+from .model_context import fleet_check, observer_for, published_uncertainty, vehicle_for
 from .model_files import (
     BEYOND_FIT_RANGE,
     default_model,
@@ -162,9 +161,7 @@ class PsoLstmBackend:
         sigma = math.radians(rmse_deg) if rmse_deg is not None else DEFAULT_SIGMA_RAD
         self.variance_rad2 = sigma * sigma
         """The variance of models without an uncertainty model (validation RMSE²)."""
-        self._uncertainty = (
-            Uncertainty.from_dict(meta.uncertainty) if meta.uncertainty is not None else None
-        )
+        self._uncertainty, described_sigma = published_uncertainty(meta, self._observer)
         self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
         self._std = np.asarray(meta.feature_std, dtype=np.float64)
 
@@ -204,6 +201,7 @@ class PsoLstmBackend:
             f"engine {engine}"
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
+            + (", σ for a described car file" if described_sigma else "")
             + (
                 f", beyond its recordings: {self._start.label}'s estimate"
                 + (" (its UKF's, outside its training cars)" if self._start._prior_only else "")

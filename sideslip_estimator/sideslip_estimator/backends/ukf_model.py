@@ -39,7 +39,7 @@ per-call overhead on 1-element arrays would cost more than the arithmetic).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Final
 
 from .base import BackendError
@@ -50,6 +50,14 @@ GRAVITY_MPS2: Final = 9.80665
 MIN_VX_MPS: Final = 0.5
 """Slip angles of a state with a smaller v_x [m/s] use this (a sigma point may go there)."""
 _MIN_FRICTION: Final = 0.05  # a sigma point's μ is floored here (the tyre model's floor)
+AXLES_FROM: Final = ("vehicle", "recordings", "description")
+"""Where a file's axle curves come from (its optional ``axles_from`` key): ``vehicle``
+(the car's own tyres or full parameters: ``sideslip_sim.ukf_params``; the default),
+``recordings`` (identified from the car's drives: ``sideslip-identify-axles``) or
+``description`` (the fleet's typical tyres for a car known by its description:
+``sideslip-fit``). The filter reads the same curves whatever the source; a model that
+reads the filter may publish another σ for a described file, whose tyres are a guess
+(:class:`~sideslip_msgs_py.uncertainty.Uncertainty`'s ``described``)."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +81,8 @@ class UkfParams:
     mu_peak_rear: float
     relaxation_length_front_m: float
     relaxation_length_rear_m: float
+    axles_from: str = field(default="vehicle", compare=False)
+    """:data:`AXLES_FROM`: where the axle curves came from (not read by the filter)."""
 
     @classmethod
     def load(cls, source: str) -> UkfParams:
@@ -82,9 +92,18 @@ class UkfParams:
 
     @classmethod
     def from_mapping(cls, data: object, where: str) -> UkfParams:
-        names = [f.name for f in fields(cls)]
+        if isinstance(data, dict) and "axles_from" in data:
+            data = dict(data)
+            axles_from = data.pop("axles_from")
+            if axles_from not in AXLES_FROM:
+                raise BackendError(
+                    f"{where}: axles_from must be one of {AXLES_FROM}, got {axles_from!r}"
+                )
+        else:
+            axles_from = "vehicle"
+        names = [f.name for f in fields(cls) if f.name != "axles_from"]
         data = check_keys(data, where, names, "ukf parameters")
-        values: dict[str, object] = {"name": str(data["name"])}
+        values: dict[str, object] = {"name": str(data["name"]), "axles_from": axles_from}
         for n in names[1:]:
             v = finite_number(where, n, data[n])
             # MF 5.2's ranges: C in (0, 2] (a larger C turns the force back), E ≤ 1 (any
