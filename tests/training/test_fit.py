@@ -98,7 +98,8 @@ def test_a_measurable_fit_trains_the_ukf_residual_on_the_described_car(tmp_path:
     # The ukf file beside the model is the described car's, and the model knows that
     # car as one of its training cars: a node given the file runs the network.
     ukf = yaml.safe_load(out.with_suffix(".ukf.yaml").read_text())
-    assert ukf == observer.params_of_vehicle(_as_recorded(Description.load(desc).vehicle()))
+    described = observer.params_of_vehicle(_as_recorded(Description.load(desc).vehicle()))
+    assert ukf == {**described, "axles_from": "description"}  # the fleet's typical tyres
     assert not FleetEnvelope.from_dict(meta.envelope).outside(ukf, "described car")
     card = out.with_suffix(".md").read_text()
     assert f"pso_lstm.observer_params_file:={out.with_suffix('.ukf.yaml')}" in card
