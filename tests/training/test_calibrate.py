@@ -237,6 +237,11 @@ def test_described_car_files_get_a_sigma_of_their_own_beside_the_models(
     mine = Uncertainty.from_dict(read_artifact(out)[1].uncertainty)
     assert replace(mine, described=None) == shipped
     assert mine.described is not None and mine.described.scale != pytest.approx(shipped.scale)
+    meta = read_artifact(out)[1]
+    shipped_meta = read_artifact(resolve("fleet_ukf_measurable"))[1]
+    assert meta.metrics["interval_calibration"] == shipped_meta.metrics["interval_calibration"]
+    assert meta.metrics["interval_calibration_described"]["scale_only"] == 1.0
+    assert meta.provenance["calibrated_described_on"] == [str(folder)]
     # Calibrating the model's own σ again keeps the one for described files.
     own = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
     again = tmp_path / "again.safetensors"

@@ -350,11 +350,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("calibrated the σ for car files made from a description (axles_from: "
               "description); the model's σ for other files is kept", file=sys.stderr)  # fmt: skip
     shown = unc.described if described and unc.described is not None else unc
+    # The σ for other files keeps the record of its own calibration.
+    suffix = "_described" if described else ""
     out_meta = replace(
         meta,
         uncertainty=unc.to_dict(),
-        metrics={**meta.metrics, "interval_calibration": figures},
-        provenance={**meta.provenance, "calibrated_on": [str(d) for d in args.data]},
+        metrics={**meta.metrics, f"interval_calibration{suffix}": figures},
+        provenance={**meta.provenance, f"calibrated{suffix}_on": [str(d) for d in args.data]},
     )
     write_artifact(args.out, tensors, out_meta, force=args.force)
     print(
