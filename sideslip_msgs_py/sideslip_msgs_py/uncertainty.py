@@ -240,8 +240,11 @@ class Uncertainty:
             self.described.described is not None or self.described.fit_range is not None
         ):
             raise UncertaintyError(
-                "uncertainty.described: has no described or fit_range of its own"
+                "uncertainty.described may not have a described or fit_range of its own"
             )
+        if self.described is not None and self.fit_range is not None:
+            # A model fitted on one car's recordings reads that car's one file.
+            raise UncertaintyError("uncertainty: a σ with a fit_range may not have a described one")
         if self.kind != KIND:
             raise UncertaintyError(f"uncertainty: unknown kind {self.kind!r} (known: {KIND})")
         c = tuple(float(x) for x in self.coefficients)

@@ -251,6 +251,10 @@ def main(argv: list[str] | None = None) -> int:
         vehicle = _described(args.vehicle) if args.description else load_vehicle(args.vehicle)
         tire = load_tire(str(vehicle.tire_path()))
         params = ukf_parameters(vehicle, *axle_tires(vehicle, tire), axles=args.axles)
+        if args.description:
+            # The tyres are the fleet's typical ones: a model reading the UKF publishes its
+            # σ for described files with this file (backends.ukf_model.AXLES_FROM).
+            params["axles_from"] = "description"
     except (VehicleFileError, OSError, ValueError, yaml.YAMLError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -184,6 +184,8 @@ def test_the_sigma_for_described_car_files_is_chosen_only_for_them_and_survives_
     assert UNC.for_axles("description") is UNC  # none stored: the one σ for every file
     assert Uncertainty.from_dict(unc.to_dict()) == unc
     assert "described" not in UNC.to_dict()
+    with pytest.raises(UncertaintyError, match="fit_range may not have a described"):
+        Uncertainty(UNC.coefficients, 0.9, fit_range=FitRange(4.0, 0.05, 1.3), described=DESCRIBED)
     ratio = unc.for_axles("description").variance_of(20.0, 3.0, 0.1) / unc.variance_of(
         20.0, 3.0, 0.1
     )
@@ -197,7 +199,7 @@ def test_the_sigma_for_described_car_files_is_chosen_only_for_them_and_survives_
         ([1, 2], "uncertainty.described must be a JSON object"),
         (
             {**DESCRIBED.to_dict(), "described": DESCRIBED.to_dict()},
-            "uncertainty.described: has no described or fit_range",
+            "uncertainty.described may not have a described or fit_range",
         ),
     ],
 )

@@ -97,7 +97,8 @@ def test_the_cli_writes_the_described_cars_ukf_file(tmp_path: Path, capsys) -> N
     params = yaml.safe_load(capsys.readouterr().out)
     assert params["name"] == "my_car"
     assert params["mass_kg"] == pytest.approx(WAGON["mass_kg"], rel=1e-5)
-    UkfParams.from_mapping(params, "cli")  # the estimator's back-end accepts it as it is
+    # The estimator's back-end accepts it as it is, and knows its tyres are a guess.
+    assert UkfParams.from_mapping(params, "cli").axles_from == "description"
     path.write_text(yaml.safe_dump({**WAGON, "cg_height_m": 1.6}))
     assert main([str(path), "--description"]) == 2
     assert "static stability factor" in capsys.readouterr().err

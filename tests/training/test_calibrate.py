@@ -249,6 +249,22 @@ def test_described_car_files_get_a_sigma_of_their_own_beside_the_models(
                  str(again)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
     assert Uncertainty.from_dict(read_artifact(again)[1].uncertainty).described == mine.described
+    # Rescaling the σ for described files keeps its own terms, not the model's.
+    terms_of_its_own = replace(
+        mine, described=replace(mine.described, coefficients=(0, 1e-5, 1e-7, 0))
+    )
+    from sideslip_msgs_py.artifact import write_artifact
+
+    tensors, meta = read_artifact(out)
+    write_artifact(
+        tmp_path / "own.safetensors", tensors, replace(meta, uncertainty=terms_of_its_own.to_dict())
+    )
+    rescaled = tmp_path / "rescaled.safetensors"
+    code = main(["--model", str(tmp_path / "own.safetensors"), *given, "--observer-params",
+                 str(described), "--out", str(rescaled)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    got = Uncertainty.from_dict(read_artifact(rescaled)[1].uncertainty).described
+    assert got is not None and got.coefficients == (0, 1e-5, 1e-7, 0)
 
     net, meta = load_model(out)
     runs, _ = load_runs([folder], step_s=meta.dt_s, topic_map=TopicMap.load(topic_map))

@@ -90,3 +90,24 @@ def test_a_run_with_its_own_car_source_keeps_its_record_when_the_given_car_is_as
     spec = InputSpec(("x_v_mps", "vehicle.mass_kg"), "none", vehicle=vehicle, car="given")
     assert spec.run_vehicle(run) == vehicle
     assert spec.run_vehicle(own) == VehicleDescription.from_mapping(record)
+
+
+def test_where_a_runs_axle_curves_come_from_follows_the_car_source(sim_bag_dir: Path, tmp_path):
+    """The σ a model publishes follows this: recorded cars are ``vehicle``, described
+    ones ``description``, a given file says itself; a value it cannot mean is refused
+    (a cached filter run must not hide a typo)."""
+    from importlib import resources
+
+    run = load_runs([sim_bag_dir])[0][0]
+    assert observer.axles_from(run, None) == "vehicle"
+    assert observer.axles_from(run, None, car="described") == "description"
+    shipped = resources.files("sideslip_estimator").joinpath("data/ukf/compact_rwd.yaml")
+    data = yaml.safe_load(shipped.read_text())
+    for value in ("recordings", "Description"):
+        path = tmp_path / f"{value}.yaml"
+        path.write_text(yaml.safe_dump({**data, "axles_from": value}))
+        if value == "recordings":
+            assert observer.axles_from(run, str(path), car="given") == "recordings"
+        else:
+            with pytest.raises(DatasetError, match=r"axles_from must be one of .*'Description'"):
+                observer.axles_from(run, str(path), car="given")

@@ -10,7 +10,8 @@ the described files of ``described_validation.py`` (``data/dv-ens-a``, ``-b``), 
 compares, 2-fold by car (fitted on cars 0–7, scored on the cells of cars 8–15, and the
 other way round):
 
-- the σ as the model file has it;
+- the σ as the model file has it for true files (its own σ, also for the described
+  files: what was published before a σ for described files existed);
 - its terms, the scale refitted on the fit half's described-file errors (conformal 95 %);
 - terms and scale refitted on them (likelihood on half the runs, scale on the rest, as
   ``sideslip-calibrate``).

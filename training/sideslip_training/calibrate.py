@@ -320,17 +320,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             "car": args.car,
         }
         described = for_described_files(runs, meta, car)
+        # The same network: the σ for the other kind of car file still holds.
+        old = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
+        start = meta
+        if described and old is not None and old.described is not None:
+            # --scale-only rescales the σ for described files, not the model's own.
+            start = replace(meta, uncertainty=old.described.to_dict())
         unc, figures = calibrate(
             runs,
             model,
-            meta,
+            start,
             coverage=args.coverage,
             seed=args.seed,
             scale_only=args.scale_only,
             car=car,
         )
-        # The same network: the σ for the other kind of car file still holds.
-        old = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
         if described:
             assert old is not None  # for_described_files checks it
             unc = replace(old, described=replace(unc, fit_range=None))

@@ -104,7 +104,13 @@ def axles_from(run: Run, params_file: str | None, *, car: str = "recorded") -> s
     """Where the axle curves of ``run``'s UKF come from (``ukf_model.AXLES_FROM``), as
     :func:`run_params` gives that filter its file: for ``description`` a model's σ for
     described files is published (``Uncertainty.for_axles``)."""
-    return str(run_params(run, params_file, car=car)[0].get("axles_from", "vehicle"))
+    from sideslip_estimator.backends.ukf_model import AXLES_FROM
+
+    value = run_params(run, params_file, car=car)[0].get("axles_from", "vehicle")
+    if value not in AXLES_FROM:
+        where = params_file or run.name
+        raise DatasetError(f"{where}: axles_from must be one of {AXLES_FROM}, got {value!r}")
+    return str(value)
 
 
 @functools.lru_cache(maxsize=256)
