@@ -517,6 +517,21 @@ def test_a_car_file_made_from_a_description_gets_the_models_sigma_for_such_files
             WINDOW,
         )
     assert "σ for a described car file" in files["description"].model_id
+    # paper_sedan lies outside the model's training cars: with outside_fleet prior the
+    # UKF's own estimate and σ are published, and the id does not claim the model's.
+    sedan = tmp_path / "sedan.ukf.yaml"
+    params = dataclasses.asdict(UkfParams.load("paper_sedan"))
+    sedan.write_text(yaml.safe_dump({**params, "axles_from": "description"}))
+    ukf_alone = PsoLstmBackend(
+        {
+            "model_file": str(model),
+            "observer_params_file": str(sedan),
+            "vehicle_file": str(vehicle),
+            "outside_fleet": "prior",
+        },
+        WINDOW,
+    )
+    assert "the UKF's estimate" in ukf_alone.model_id and "σ for" not in ukf_alone.model_id
     assert "described" not in files["vehicle"].model_id
     rows, stamps = make_rows(2 * WINDOW, seed=2)
     seen = 0

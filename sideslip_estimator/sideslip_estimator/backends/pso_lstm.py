@@ -162,6 +162,7 @@ class PsoLstmBackend:
         self.variance_rad2 = sigma * sigma
         """The variance of models without an uncertainty model (validation RMSE²)."""
         self._uncertainty, described_sigma = published_uncertainty(meta, self._observer)
+        ukf_alone = self._prior_only and meta.prior == "ukf"
         self._mean = np.asarray(meta.feature_mean, dtype=np.float64)
         self._std = np.asarray(meta.feature_std, dtype=np.float64)
 
@@ -201,7 +202,8 @@ class PsoLstmBackend:
             f"engine {engine}"
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
-            + (", σ for a described car file" if described_sigma else "")
+            # Outside the training cars a UKF-residual model publishes the UKF's own σ.
+            + (", σ for a described car file" if described_sigma and not ukf_alone else "")
             + (
                 f", beyond its recordings: {self._start.label}'s estimate"
                 + (" (its UKF's, outside its training cars)" if self._start._prior_only else "")
