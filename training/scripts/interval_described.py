@@ -30,6 +30,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from sideslip_msgs_py.uncertainty import Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 from sideslip_training.calibrate import Errors, conformal_scale, fit_coefficients, scale_of_ratios
-from sideslip_training.dataset import load_runs
+from sideslip_training.dataset import Run, load_runs
 from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 
@@ -47,21 +48,19 @@ BAND = (0.93, 0.97)
 FILES = ("true", "described")
 
 
-def errors_by_car(model: str, cars: list[Path], data: list[str]) -> dict[str, np.ndarray]:
-    """Per sample, over every car's runs and both files: error [rad], v, a_y, r, run
-    (global index), car index, μ and which file (0 true, 1 described)."""
-    net, meta = load_model(resolve(model))
-    runs, _ = load_runs(data, step_s=meta.dt_s)
+def cars_and_runs(
+    cars: list[Path], data: list[str], dt_s: float
+) -> tuple[list[tuple[Path, list[Run], dict[str, Any]]], dict[str, dict[str, Any]]]:
+    """Each car folder with its runs in ``data`` and the car files its description gives
+    (as ``predict_run`` takes them); and every bag's index entry (its μ)."""
+    runs, _ = load_runs(data, step_s=dt_s)
     index = {
         r["bag"]: r
         for folder in data
         for r in json.loads((Path(folder) / "index.json").read_text())["runs"]
     }
-    out: dict[str, list[np.ndarray]] = {
-        k: [] for k in ("err", "v", "ay", "r", "run", "car", "mu", "kind")
-    }
-    run_id = 0
-    for ci, car in enumerate(cars):
+    out = []
+    for car in cars:
         mine = [r for r in runs if index[Path(str(r.bag)).name]["vehicle"] == car.name]
         if not mine:
             raise SystemExit(f"{car}: no runs of {car.name} in {data}")
@@ -70,6 +69,20 @@ def errors_by_car(model: str, cars: list[Path], data: list[str]) -> dict[str, np
             "observer_params_file": str(car / "described.ukf.yaml"),
             "car": "given",
         }
+        out.append((car, mine, described))
+    return out, index
+
+
+def errors_by_car(model: str, cars: list[Path], data: list[str]) -> dict[str, np.ndarray]:
+    """Per sample, over every car's runs and both files: error [rad], v, a_y, r, run
+    (global index), car index, μ and which file (0 true, 1 described)."""
+    net, meta = load_model(resolve(model))
+    by_car, index = cars_and_runs(cars, data, meta.dt_s)
+    out: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("err", "v", "ay", "r", "run", "car", "mu", "kind")
+    }
+    run_id = 0
+    for ci, (car, mine, described) in enumerate(by_car):
         for fi, files in enumerate(({}, described)):
             for run in mine:
                 e = Errors.of_runs([run], net, meta, **files)
@@ -102,22 +115,11 @@ def observer_terms(
         names.index("ukf.yaw_rate_innovation_radps"),
         names.index("ukf.lateral_acceleration_innovation_mps2"),
     ]
-    runs, _ = load_runs(data, step_s=meta.dt_s)
-    index = {
-        r["bag"]: r
-        for folder in data
-        for r in json.loads((Path(folder) / "index.json").read_text())["runs"]
-    }
+    by_car, _ = cars_and_runs(cars, data, meta.dt_s)
     w = meta.window_steps
     out: dict[str, list[np.ndarray]] = {"innr2w": [], "innay2w": []}
     run_id = 0
-    for car in cars:
-        mine = [r for r in runs if index[Path(str(r.bag)).name]["vehicle"] == car.name]
-        described = {
-            "vehicle": VehicleDescription.load(car / "description.yaml"),
-            "observer_params_file": str(car / "described.ukf.yaml"),
-            "car": "given",
-        }
+    for car, mine, described in by_car:
         for files in ({}, described):
             given = (files.get("vehicle"), meta.observer, files.get("observer_params_file"))
             car_source = str(files.get("car", "recorded"))
