@@ -139,3 +139,16 @@ def test_the_cli_merges_trained_models_scores_and_calibrates_them(
     code = main([models[0], str(tmp_path / "none.safetensors"), "--data", str(sim_bag_dir),
                  "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
     assert code == 2 and "sideslip-merge: error" in capsys.readouterr().err
+
+
+def test_described_car_files_alone_cannot_calibrate_the_merged_models_own_sigma(
+    sim_bag_dir: Path, tmp_path: Path, capsys
+) -> None:
+    """The merged model's σ is the one published with true and identified files; one
+    calibrated with guessed tyres alone is refused, naming the way to add it."""
+    out = tmp_path / "m.safetensors"
+    code = main(["fleet_ukf_measurable", "fleet_ukf_described", "--data", str(sim_bag_dir),
+                 "--car", "described", "--out", str(out)])  # fmt: skip
+    assert code == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert "made from a description" in err and "sideslip-calibrate --car described" in err

@@ -91,3 +91,21 @@ def test_an_interval_policy_the_training_cannot_follow_is_refused_before_trainin
     err = capsys.readouterr().err
     assert named in err and len(err.strip().splitlines()) == 1
     assert not out.exists() and not (tmp_path / "m.run" / "history.json").exists()
+
+
+def test_fine_tuning_with_described_car_files_rescales_the_starts_sigma_for_them(
+    sim_bag_dir: Path, tmp_path: Path
+) -> None:
+    """A start that carries a σ for described car files (``fleet_ukf_ensemble``) keeps
+    those terms where the runs read such files, and its own terms otherwise; the fitted
+    model's one σ never carries the other beside its fit range."""
+    start = _uncertainty(resolve("fleet_ukf_ensemble"))
+    assert start is not None and start.described is not None
+    args = ["--data", str(sim_bag_dir), "--init", "fleet_ukf_ensemble", *TINY]
+    for car, terms in (("described", start.described), ("recorded", start)):
+        out = tmp_path / f"{car}.safetensors"
+        assert train_main([*args, "--car", car, "--out", str(out)]) == 0
+        mine = _uncertainty(out)
+        assert mine is not None and mine.described is None and mine.fit_range is not None
+        assert mine.coefficients == terms.coefficients
+        assert mine.fit_range.outside_scale == pytest.approx(2.0 * terms.scale)

@@ -235,17 +235,24 @@ def calibrate(
     return unc, report
 
 
+def described_kinds(runs: Sequence[Run], meta, car: dict[str, Any]) -> set[bool]:  # type: ignore[no-untyped-def]
+    """For each kind of UKF file ``runs`` are read with, whether it was made from a
+    description (``axles_from: description``): {True} where all were, {False} where
+    none was or the model reads no UKF, both for a mix (``--car mixed``)."""
+    if not meta.needs_observer:
+        return {False}
+    from .observer import axles_from
+
+    return {
+        axles_from(r, car["observer_params_file"], car=car["car"]) == "description" for r in runs
+    }
+
+
 def for_described_files(runs: Sequence[Run], meta, car: dict[str, Any]) -> bool:  # type: ignore[no-untyped-def]
     """Whether the calibration is the σ for car files made from a description: every
     run's UKF file is one (``--car described``, or ``--car given`` with such a file).
     Raises DatasetError for a mix, or where the model has no σ of its own to keep."""
-    if not meta.needs_observer:
-        return False
-    from .observer import axles_from
-
-    kinds = {
-        axles_from(r, car["observer_params_file"], car=car["car"]) == "description" for r in runs
-    }
+    kinds = described_kinds(runs, meta, car)
     if kinds != {True}:
         if len(kinds) > 1:
             raise DatasetError(

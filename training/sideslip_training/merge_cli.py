@@ -20,7 +20,7 @@ from sideslip_msgs_py.artifact import ArtifactError
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
-from .calibrate import Errors, calibrate
+from .calibrate import Errors, calibrate, described_kinds
 from .cli_errors import EXIT_BAD_INPUT
 from .dataset import DatasetError, load_runs
 from .export import export_model, load_model
@@ -49,6 +49,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--topic-map", type=Path, metavar="FILE", help="see sideslip-train")
     add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")
+    p.epilog = (
+        "For models that read the UKF the σ is calibrated with the runs' car files: true "
+        "or identified ones, or a mix with described ones (--car mixed); described files "
+        "alone are refused, since that σ would be the model's own (sideslip-calibrate "
+        "--car described adds one for them afterwards)."
+    )
     return p
 
 
@@ -74,6 +80,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             "observer_params_file": str(args.observer_params) if args.observer_params else None,
             "car": args.car,
         }
+        if described_kinds(runs, meta, car) == {True}:
+            # The merged model's σ is its own, published with every other kind of file;
+            # one calibrated with guessed tyres alone would be too wide there.
+            raise DatasetError(
+                "every run's UKF file was made from a description (axles_from: "
+                "description): the merged model's own σ is calibrated with true or "
+                "identified car files (or a mix); give those, then add the σ for "
+                "described files with sideslip-calibrate --car described"
+            )
         scores = {}
         for name, (m_net, m_meta) in zip(args.models, members, strict=True):
             scores[name] = _mae_rmse_me(Errors.of_runs(runs, m_net, m_meta, **car))

@@ -100,10 +100,6 @@ def calibrate_selection(
         )
         log(f"intervals: none ({why})")
         return None, None
-    if mode == "scale":
-        assert plan.init is not None
-        # The selected model starts without σ; its terms are the --init model's.
-        meta = replace(meta, uncertainty=plan.init.meta.uncertainty)
     spec = plan.spec
     car = {
         "vehicle": spec.vehicle,
@@ -111,11 +107,14 @@ def calibrate_selection(
         "car": spec.car,
     }
     try:
+        if mode == "scale":
+            start = _start_sigma(plan, meta, car, log)
+            meta = replace(meta, uncertainty=start.to_dict())
         unc, figures = calibrate(
             plan.data.val_runs, model, meta, seed=seed, scale_only=mode == "scale", car=car
         )
         if mode == "scale":
-            unc = replace(unc, fit_range=_fit_range(plan))
+            unc = replace(unc, fit_range=_fit_range(plan, start.scale))
     except (DatasetError, FilterError, FeatureError, ValueError) as err:
         log(f"intervals: none ({err})")
         if policy != "auto":
@@ -141,14 +140,36 @@ def calibrate_selection(
     return unc.to_dict(), figures
 
 
-def _fit_range(plan: TrainPlan) -> Any:
-    """The range of the recordings the model was fine-tuned and calibrated on, with
-    :data:`OUTSIDE_FACTOR` times the ``--init`` model's scale for beyond it."""
-    import numpy as np
+def _start_sigma(
+    plan: TrainPlan, meta: Any, car: dict[str, Any], log: Callable[[str], None]
+) -> Any:
+    """The σ whose terms ``scale`` keeps (an :class:`Uncertainty`): the --init model's
+    own, or where every validation run reads a UKF file made from a description and the
+    --init model carries a σ for such files (``sideslip-calibrate --car described``),
+    that one: it was fitted where the filter's tyres are guessed, as here."""
+    from sideslip_msgs_py.uncertainty import Uncertainty
 
-    from sideslip_msgs_py.uncertainty import FitRange, Uncertainty
+    from .calibrate import described_kinds
 
     assert plan.init is not None and plan.init.meta.uncertainty is not None
+    start = Uncertainty.from_dict(plan.init.meta.uncertainty)
+    if start.described is not None and described_kinds(plan.data.val_runs, meta, car) == {True}:
+        log("intervals: the runs read described car files: scaling the start's σ for those")
+        return start.described
+    # The fine-tuned model's σ is for the files it was calibrated with, and it carries a
+    # fit range, which a σ for described files may not sit beside.
+    return replace(start, described=None)
+
+
+def _fit_range(plan: TrainPlan, start_scale: float) -> Any:
+    """The range of the recordings the model was fine-tuned and calibrated on, with
+    :data:`OUTSIDE_FACTOR` times the scale of the ``--init`` model's σ whose terms were
+    kept (``start_scale``) for beyond it."""
+    import numpy as np
+
+    from sideslip_msgs_py.uncertainty import FitRange
+
+    assert plan.init is not None
     # The recordings only: rehearsal trains the model beyond them, but the scale was
     # calibrated on the recordings, and it is their range the σ is known to hold in.
     runs = [*plan.data.recorded_train_runs, *plan.data.val_runs]
@@ -157,6 +178,6 @@ def _fit_range(plan: TrainPlan) -> Any:
             np.concatenate([getattr(r.samples, name) for r in runs])
             for name in ("x_v_mps", "y_a_mps2", "yaw_rate_radps")
         ),
-        outside_scale=OUTSIDE_FACTOR * Uncertainty.from_dict(plan.init.meta.uncertainty).scale,
+        outside_scale=OUTSIDE_FACTOR * start_scale,
         window_steps=plan.init.meta.window_steps,
     )
