@@ -35,6 +35,15 @@ from .lstm_cells import FloatArray
 from .streaming import StreamingLstm
 
 
+def numba_available() -> bool:
+    """Whether numba imports (an optional dependency of the streaming engine's kernel)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
 def unit_groups(tensors: Mapping[str, np.ndarray], meta: ModelMetadata) -> list[np.ndarray]:
     """The groups of hidden units no weight connects: the members of a merged model
     (:func:`sideslip_msgs_py.model_members.unit_groups`)."""

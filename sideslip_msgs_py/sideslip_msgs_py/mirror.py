@@ -18,15 +18,37 @@ recordings should be compared with and without (``sideslip-train --mirror``).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
+import numpy.typing as npt
 
 from .channels import SENSOR, TRUTH
 from .sample import SampleArrays
 
 LATERAL_CHANNELS: Final = tuple(ch.name for ch in (*SENSOR, *TRUTH) if ch.lateral)
 """The columns that change sign under a left-right mirror (registry order)."""
+
+ODD_INPUTS: Final = frozenset(
+    {
+        "tan_beta_kinematic", "beta_rate_radps", "y_a_g", "centripetal_g",
+        "road_wheel_angle_rad", "understeer_angle_rad", "rear_kinematic_beta_rad",
+        "ukf.beta_rad", "ukf.yaw_rate_innovation_radps",
+        "ukf.lateral_acceleration_innovation_mps2",
+    }
+)  # fmt: skip
+"""The derived and observer model inputs (:mod:`.model_inputs`) that change sign under a
+left-right mirror; the others (speed, longitudinal acceleration, μ̂, the car's
+parameters) keep it. Each input's parity is checked against its definition in the
+tests, so a new input cannot be declared wrongly here."""
+
+
+def input_signs(names: Sequence[str]) -> npt.NDArray[np.float64]:
+    """Per model input: −1 where a left-right mirror negates it, +1 where it keeps it.
+    The model inputs of a mirrored run are the signs times the run's own."""
+    odd = ODD_INPUTS.union(LATERAL_CHANNELS)
+    return np.array([-1.0 if name in odd else 1.0 for name in names])
 
 
 def mirrored(samples: SampleArrays) -> SampleArrays:

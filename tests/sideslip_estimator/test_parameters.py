@@ -60,7 +60,14 @@ INT_NAMES = {
     "wait_for_subscribers",
     "threads",
 }
-BOOL_NAMES = {"publish_clock", "loop", "ground_truth", "tyre_relaxation", "estimate_friction"}
+BOOL_NAMES = {
+    "publish_clock",
+    "loop",
+    "ground_truth",
+    "tyre_relaxation",
+    "estimate_friction",
+    "mirror_average",
+}
 STR_NAMES = {
     "backend",
     "params_file",

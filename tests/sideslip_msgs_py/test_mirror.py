@@ -82,3 +82,36 @@ def test_a_mirrored_run_is_the_simulators_answer_to_the_mirrored_steering() -> N
         np.testing.assert_allclose(
             getattr(m, f.name), getattr(right, f.name), rtol=1e-6, atol=1e-9, err_msg=f.name
         )
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rows=hnp.arrays(np.float64, (5, 9), elements=st.floats(-50.0, 50.0, allow_nan=False, width=64)),
+)
+def test_every_model_input_is_negated_or_kept_by_a_mirror_as_input_signs_declares(rows) -> None:
+    """Each channel, derived and conditioning input, computed from mirrored channels,
+    equals its sign times the input of the run as driven: the estimator's mirror average
+    relies on it for every input it may read."""
+    from sideslip_msgs_py.features import CHANNELS
+    from sideslip_msgs_py.mirror import ODD_INPUTS, input_signs
+    from sideslip_msgs_py.model_inputs import (
+        CONDITIONING,
+        DERIVED,
+        OBSERVER_COLUMNS,
+        input_matrix,
+    )
+    from sideslip_msgs_py.vehicle_description import VehicleDescription
+
+    names = (*CHANNELS, *DERIVED, *CONDITIONING, *OBSERVER_COLUMNS)
+    columns = {c: rows[:, j % rows.shape[1]] for j, c in enumerate(CHANNELS)}
+    columns["x_v_mps"] = np.abs(columns["x_v_mps"]) + 2.0  # forward speed keeps its sign
+    for j, c in enumerate(OBSERVER_COLUMNS):
+        columns[c] = rows[:, (j + 3) % rows.shape[1]]
+    columns["ukf.road_friction"] = np.abs(columns["ukf.road_friction"])
+    # The observer columns as the filter gives them for the mirrored run: that it does
+    # is checked against the filter itself (tests/sideslip_estimator/test_mirror_average.py).
+    flipped = {c: -v if c in LATERAL_CHANNELS or c in ODD_INPUTS else v for c, v in columns.items()}
+    car = VehicleDescription(1500.0, 2.7, 1.2, 0.55, 1.55, 1.6, 0.31)
+    plain = input_matrix(columns, names, car)
+    mirror = input_matrix(flipped, names, car)
+    np.testing.assert_array_equal(mirror, plain * input_signs(names))

@@ -20,12 +20,14 @@ import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope, publishes_prior
+from sideslip_msgs_py.mirror import input_signs
 from sideslip_msgs_py.model_inputs import INPUT_SETS
 from sideslip_msgs_py.timing import STEP_S
 from sideslip_msgs_py.uncertainty import Z_95, Uncertainty
 from sideslip_msgs_py.vehicle_description import VehicleDescription
 
 from .dataset import Run
+from .filter_replay import FILTER_LABELS, physics_filter
 from .inputs import InputSpec
 from .model import SideslipNet
 
@@ -150,6 +152,7 @@ def predict_run(
     observer_params_file: str | None = None,
     outside_fleet: str = "auto",
     car: str = "recorded",
+    mirror_average: bool = False,
 ) -> FloatArray:
     """β̂ [rad] for every sample with a full window, i.e. samples[window-1:] (NaN where
     an input is not finite, e.g. the UKF observer gives no estimate below its speed).
@@ -161,7 +164,8 @@ def predict_run(
     outside the model's training cars (:func:`outside_training_cars`): with ``prior``
     (``auto`` for a residual on the UKF) the prior alone is β̂, as the node publishes it.
     ``car``: where the car's parameters come from for runs whose bags record one
-    (:data:`~sideslip_training.inputs.CAR_SOURCES`).
+    (:data:`~sideslip_training.inputs.CAR_SOURCES`). ``mirror_average``: the network
+    averaged with its mirror image, as the node's ``pso_lstm.mirror_average``.
     """
     fallback = vehicle
     if fallback is None and meta.vehicle is not None:
@@ -183,7 +187,21 @@ def predict_run(
         prior_only = spec.prior_rad(run, w)[w - 1 :]
         return np.where(np.isfinite(prior_only), prior_only, np.nan)
     # The contract's z-score (float64, rounded once to float32), as the estimator does.
-    x = zscore(spec.inputs(run), meta.feature_mean, meta.feature_std)
+    raw = spec.inputs(run)
+    x = zscore(raw, meta.feature_mean, meta.feature_std)
+    out = _network_output(model, x, w)
+    if mirror_average:  # the node's pso_lstm.mirror_average (sideslip_estimator.mirror_average)
+        mirror = zscore(raw * input_signs(meta.features), meta.feature_mean, meta.feature_std)
+        out = 0.5 * (out - _network_output(model, mirror, w)) - meta.beta_mean / meta.beta_std
+    prior = spec.prior_rad(run, w)[w - 1 :]
+    # A window with a non-finite input gives no estimate (as in training and the node).
+    bad = np.concatenate([[0], np.cumsum(~np.isfinite(x).all(axis=1))])
+    clean = bad[w:] - bad[:-w] == 0
+    return np.where(clean, out * meta.beta_std + meta.beta_mean + prior, np.nan)
+
+
+def _network_output(model: SideslipNet, x: FloatArray, w: int) -> FloatArray:
+    """The network's z-scored output y for every full window of the rows ``x``."""
     windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (N, F, w)
     out = np.empty(windows.shape[0])
     model.eval()
@@ -191,11 +209,7 @@ def predict_run(
         for start in range(0, windows.shape[0], PREDICT_BATCH):
             chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
-    prior = spec.prior_rad(run, w)[w - 1 :]
-    # A window with a non-finite input gives no estimate (as in training and the node).
-    bad = np.concatenate([[0], np.cumsum(~np.isfinite(x).all(axis=1))])
-    clean = bad[w:] - bad[:-w] == 0
-    return np.where(clean, out * meta.beta_std + meta.beta_mean + prior, np.nan)
+    return out
 
 
 def outside_training_cars(
@@ -229,29 +243,6 @@ def kinematic(run: Run, smoothing_steps: int, window_steps: int) -> FloatArray:
     return beta[window_steps - 1 :]
 
 
-class FilterError(ValueError):
-    """A physics filter that cannot be built from the given parameters."""
-
-
-FILTER_LABELS = {"single_track": "Single-track KF", "ukf": "UKF"}
-
-
-def physics_filter(run: Run, backend: str, params_file: str, window_steps: int) -> FloatArray:
-    """β̂ [rad] of the estimator's ``backend`` (``single_track`` or ``ukf``, with
-    ``params_file``) fed the run through the estimator core as the node would, for
-    samples[window_steps-1:] (NaN where it gives none)."""
-    from sideslip_estimator.backends import BackendError, create_backend
-    from sideslip_estimator.estimator import Estimator, EstimatorParams
-    from sideslip_estimator.replay import replay, replay_columns
-
-    try:
-        backend_ = create_backend(backend, {"params_file": params_file}, window_steps)
-    except (BackendError, ImportError) as err:
-        raise FilterError(f"{FILTER_LABELS[backend]}: {err}") from None
-    est = Estimator(backend_, EstimatorParams(window_steps=window_steps))
-    return replay(est, replay_columns(run.samples)).beta_rad[window_steps - 1 :]
-
-
 def evaluate_runs(
     runs: Sequence[Run],
     models: Sequence[tuple[str, SideslipNet, ModelMetadata]],
@@ -264,6 +255,7 @@ def evaluate_runs(
     car: str = "recorded",
     filters: Mapping[str, str] | None = None,
     beyond_fit_range: str = "auto",
+    mirror_average: bool = False,
 ) -> list[Trace]:
     """Traces of every estimator on every run: baselines first (β = 0, kinematic raw and
     smoothed, then the physics ``filters``: back-end name → params file), then the models
@@ -274,8 +266,10 @@ def evaluate_runs(
     recordings publishes, while its window reaches beyond their range, the estimate and
     σ of the shipped model it started from (``auto``: when the recordings were gentle
     and that model is shipped with the same training data; ``start``: always, requiring
-    it), or its own (``model``)."""
+    it), or its own (``model``). ``mirror_average``: every model (and start model)
+    averaged with its mirror image, as the estimator's parameter."""
     car_kwargs = {"vehicle": vehicle, "observer_params_file": observer_params_file, "car": car}
+    car_kwargs["mirror_average"] = mirror_average
     starts = {name: start_of(meta, beyond_fit_range, name) for name, _, meta in models}
     if beyond_fit_range == "start" and not any(starts.values()):
         raise StartModelError("--beyond-fit-range start: no model records a range of recordings")

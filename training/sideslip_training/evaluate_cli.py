@@ -68,6 +68,12 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         "when the recordings stayed under 5 m/s² and that model is shipped with the same "
         "training data",
     )
+    p.add_argument(
+        "--mirror-average",
+        action="store_true",
+        help="average every model with its mirror image (the node's pso_lstm.mirror_average: "
+        "a right turn answered as the mirrored left one; docs/evaluation/direction)",
+    )
     add_car_files_arguments(p)
     p.add_argument(
         "--single-track-params",
@@ -92,7 +98,6 @@ def _evaluate_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     from .evaluate import (
-        FilterError,
         StartModelError,
         evaluate_runs,
         metrics_json,
@@ -102,6 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     from .evaluate_figures import plot_band, plot_error_pdfs, plot_traces
     from .evaluate_tables import table_csv, table_markdown
+    from .filter_replay import FilterError
 
     args = _evaluate_parser().parse_args(argv)
     try:
@@ -190,6 +196,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             car=args.car,
             filters=filters,
             beyond_fit_range=args.beyond_fit_range,
+            mirror_average=args.mirror_average,
         )
     except (DatasetError, VehicleDescriptionError, FilterError, StartModelError) as err:
         print(f"sideslip-evaluate: error: {err}", file=sys.stderr)

@@ -189,8 +189,8 @@ def run(
     from .cli import train_main
     from .cli_errors import EXIT_BAD_INPUT
     from .dataset import DatasetError
-    from .evaluate import FilterError
     from .export import load_model
+    from .filter_replay import FilterError
     from .init_model import resolve
 
     work = args.work or args.out.with_suffix(".fit")

@@ -46,8 +46,9 @@ def scored_traces(
 
     from sideslip_msgs_py.vehicle_description import VehicleDescription
 
-    from .evaluate import Trace, evaluate_runs, model_label, physics_filter
+    from .evaluate import Trace, evaluate_runs, model_label
     from .export import load_model
+    from .filter_replay import physics_filter
     from .splits import split_in_time
 
     loaded = [load_model(m) for m in models]

@@ -90,7 +90,7 @@ def calibrate_selection(
     from sideslip_msgs_py.features import FeatureError
 
     from .calibrate import calibrate
-    from .evaluate import FilterError
+    from .filter_replay import FilterError
 
     if mode is None:
         why = (

@@ -75,7 +75,8 @@ from sideslip_msgs_py.vehicle_description import VehicleDescription
 from ..inputs import X_V as _X_V
 from ..inputs import Y_A as _Y_A
 from ..inputs import YAW_RATE as _YAW_RATE
-from ..streaming_members import streaming_engine
+from ..mirror_average import MirrorAveragedStream, MirrorAveragedWindow
+from ..streaming_members import numba_available, streaming_engine
 from .base import BackendError, Estimate, parameter_values
 from .model_context import fleet_check, observer_for, published_uncertainty, vehicle_for
 from .model_files import (
@@ -99,15 +100,6 @@ _UNSET: Final = _Unset()
 DEFAULT_SIGMA_RAD: Final = math.radians(1.0)
 """1-σ of β̂ [rad] published when the artifact has no validation RMSE: about three
 times the paper's LSTM test RMSE (Table 5), so a fusion filter trusts it modestly."""
-
-
-def _numba_available() -> bool:
-    """Whether numba imports (an optional dependency of this back-end)."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 class PsoLstmBackend:
@@ -169,17 +161,22 @@ class PsoLstmBackend:
         engine = str(v["engine"])
         if engine not in ENGINES:
             raise BackendError(f"pso_lstm.engine must be one of {ENGINES}, got {engine!r}")
-        if engine == "numba" and not _numba_available():
+        if engine == "numba" and not numba_available():
             engine = "numpy"
-        self._stream = streaming_engine(
-            tensors, meta, kernel="numba" if engine == "numba" else "numpy"
-        )
+        kernel = "numba" if engine == "numba" else "numpy"
+        self._stream = streaming_engine(tensors, meta, kernel=kernel)
         if engine != "torch" and self._stream.per_window_recurrences > 0:
             engine = "torch"  # a stacked BiLSTM recomputes its windows: torch is faster
         self.engine = engine
         """``numba`` or ``numpy`` (the streaming engine) or ``torch`` (the whole window
         per sample): the one that runs."""
         self._window_net = TorchWindow(tensors, meta, threads) if engine == "torch" else None
+        self.mirror_average = bool(v["mirror_average"])
+        if self.mirror_average:  # the network and its mirror image (..mirror_average)
+            mirror = streaming_engine(tensors, meta, kernel=kernel)
+            self._stream = MirrorAveragedStream(self._stream, mirror, meta)
+            if self._window_net is not None:
+                self._window_net = MirrorAveragedWindow(self._window_net, meta)
         self._rows_pushed = 0
         self._last_stamp = 0
         self._start = self._start_backend(v, label)
@@ -200,6 +197,7 @@ class PsoLstmBackend:
             f"pso_lstm({label}: {meta.architecture} {meta.layers}x{meta.hidden_units}, "
             f"features {','.join(meta.features)}, data {meta.training_data_digest[:12]}, "
             f"engine {engine}"
+            + (", averaged with its mirror image" if self.mirror_average else "")
             + (f", observer {self._observer.model_id}" if self._observer is not None else "")
             + (", outside its training cars: the UKF's estimate" if self._prior_only else "")
             # Outside the training cars a UKF-residual model publishes the UKF's own σ.

@@ -72,6 +72,16 @@ PSO_LSTM_PARAMETERS: Final = (
         "stacked BiLSTM always takes torch.",
     ),
     ParameterSpec(
+        "mirror_average",
+        False,
+        "Average the network with its own mirror image (the inputs of the same drive "
+        "turned the other way, the output negated back): the estimate of a right turn "
+        "is then exactly that of the mirrored left turn. The fleet models learnt from "
+        "drives that start most manoeuvres to the left and err more on mirrored drives; "
+        "on validation cars driven both ways it lowered every UKF-anchored model's MAE "
+        "(docs/evaluation/direction). Costs a second network pass per sample.",
+    ),
+    ParameterSpec(
         "threads",
         1,
         "CPU threads of the torch engine (torch.set_num_threads: process-wide). One is "
