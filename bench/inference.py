@@ -185,6 +185,29 @@ def bench_beyond_fit_range(
     return out
 
 
+def bench_mirror_average(
+    models: list[Path], folder: Path, calls: int, warmup: int, threads: int
+) -> dict[str, object]:
+    """``update()`` of each model with ``mirror_average`` off and on (numba engine), in
+    one run, and the ratios: the price of a second network pass (the UKF runs once)."""
+    out: dict[str, object] = {}
+    for model in models:
+        extra = car_values(model, folder)
+        row: dict[str, object] = {
+            mode: bench_update(
+                model, calls, warmup, threads, {**extra, "mirror_average": mode == "on"}
+            )
+            for mode in ("off", "on")
+        }
+        for q in ("p50_us", "p99_us"):
+            row[f"on_over_off_{q.removesuffix('_us')}"] = (
+                row["on"][q] / row["off"][q]  # type: ignore[index]
+            )
+        out[model.name] = row
+        print(f"mirror_average {model.name}: {row}", file=sys.stderr)
+    return out
+
+
 SHIPPED_DIR = (
     Path(__file__).resolve().parents[1] / "sideslip_estimator/sideslip_estimator/data/models"
 )
@@ -213,7 +236,31 @@ def main(argv: list[str] | None = None) -> int:
         ],
         help="exported models to time as well (default: the shipped ones)",
     )
+    p.add_argument(
+        "--mirror-average-only",
+        action="store_true",
+        help="only pso_lstm.mirror_average off against on, for the shipped models that "
+        "read the UKF and fleet_lstm_paper",
+    )
     args = p.parse_args(argv)
+    if args.mirror_average_only:
+        with tempfile.TemporaryDirectory(prefix="sideslip-bench-") as tmp:
+            names = ("fleet_lstm_paper", "fleet_ukf_paper", "fleet_ukf_measurable")
+            models = [SHIPPED_DIR / f"{n}.safetensors" for n in (*names, "fleet_ukf_ensemble")]
+            timings = bench_mirror_average(models, Path(tmp), args.calls, args.warmup, 1)
+        emit_report(
+            {
+                "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+                "commit": git_commit(),
+                "machine": {"cpu": cpu_model(), "python": platform.python_version()},
+                "engine": "numba",
+                "window_steps": WINDOW_STEPS,
+                "command": " ".join(["python", "bench/inference.py", *(argv or sys.argv[1:])]),
+                "update": timings,
+            },
+            args.json,
+        )
+        return 0
 
     import torch  # for the version only; the back-end imports it itself
 

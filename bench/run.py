@@ -188,8 +188,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sections",
         nargs="+",
-        choices=["simulator", "ros", "training", "inference", "streaming", "soak"],
-        default=["simulator", "ros", "training", "inference", "streaming"],
+        choices=[
+            "simulator",
+            "ros",
+            "training",
+            "inference",
+            "mirror_average",
+            "streaming",
+            "soak",
+        ],
+        default=["simulator", "ros", "training", "inference", "mirror_average", "streaming"],
         help="which benchmark sections to run (others keep their previous results); soak "
         "(sim + default estimator + 2 CPU-bound processes, --soak-seconds) only on request",
     )
@@ -234,6 +242,13 @@ def main(argv: list[str] | None = None) -> int:
         command = [sys.executable, str(here / "inference.py"), "--json", str(tmp)]
         subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
         results["inference"] = json.loads(tmp.read_text())
+    if "mirror_average" in args.sections:
+        # pso_lstm.mirror_average off and on for the models a car file selects, in one run.
+        tmp = Path(tempfile.mkdtemp(prefix="sideslip-mirror-")) / "mirror.json"
+        command = [sys.executable, str(here / "inference.py"), "--mirror-average-only"]
+        command += ["--json", str(tmp)]
+        subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
+        results["mirror_average"] = json.loads(tmp.read_text())
     if "streaming" in args.sections:
         # The engine against the per-window torch path, idle and with two CPU-bound
         # background processes (issue 10's ratio under load).
@@ -248,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
         from tools.soak import run as run_soak  # imports rclpy: only when asked for
 
         results["soak"] = run_soak(args.soak_seconds, load=2)
-    for section in ("simulator", "ros_runtime", "training", "inference", "streaming", "soak"):
+    sections = ("simulator", "ros_runtime", "training", "inference", "mirror_average")
+    for section in (*sections, "streaming", "soak"):
         if section in results:
             results[section]["measured"] = {  # type: ignore[index]
                 "date_utc": results["date_utc"],
