@@ -287,3 +287,34 @@ def test_a_network_gets_the_car_when_predict_run_takes_one(held_out_bags: Path, 
     net = benchmark_estimators.load_networks([], shipped=True)[0]
     benchmark_estimators.predict(net, run)
     assert isinstance(seen[0], VehicleParams) and seen[0].name == run.vehicle_name
+
+
+def test_both_ways_scores_each_run_and_its_mirror_image_in_its_cell(
+    held_out_bags: Path, tiny_models: dict[str, Path], tmp_path: Path
+) -> None:
+    """With ``--both-ways`` every run is scored again turned the other way; the symmetric
+    estimators (β = 0, the kinematics, the filters, a mirror-averaged network) err alike
+    on both, so no figure can come from the side of the drive."""
+    out = tmp_path / "both"
+    code = main(
+        [
+            "--data", str(held_out_bags), "--out", str(out), "--jobs", "1", "--quiet",
+            "--no-default-models", "--model", f"tiny={tiny_models['measurable']}",
+            "--both-ways", "--mirror-average",
+        ]
+    )  # fmt: skip
+    assert code == 0
+    res = _results(out)
+    runs = {r["run"]: r for r in res["runs"]}
+    assert len(runs) == 2 * len(PICKS)
+    assert res["both_ways"] and res["mirror_average"]
+    for name, run in runs.items():
+        if name.endswith("~mirror"):
+            continue
+        twin = runs[name + "~mirror"]
+        assert (twin["vehicle"], twin["mu"]) == (run["vehicle"], run["mu"])
+        for label in (ZERO, KINEMATIC_RAW, KINEMATIC_MEAN, SINGLE_TRACK, UKF, "tiny"):
+            a, b = run["estimators"][label]["mae_deg"], twin["estimators"][label]["mae_deg"]
+            assert a == pytest.approx(b, rel=1e-6, abs=1e-9), label
+    for cell in res["cells"]:
+        assert cell["runs"] % 2 == 0

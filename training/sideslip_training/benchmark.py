@@ -41,6 +41,7 @@ from .benchmark_data import (
     generate_held_out,
     limit_runs,
     load_held_out,
+    mirrored_runs,
 )
 from .benchmark_estimators import (
     BASELINES,
@@ -132,6 +133,18 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="score only the first N runs of every car × μ cell (quick looks)",
     )
+    p.add_argument(
+        "--both-ways",
+        action="store_true",
+        help="score every run and its mirror image (the same drive turned the other way; "
+        "in the same cell): the fleet's training drives start most manoeuvres to the left, "
+        "and so do the benchmark's (docs/evaluation/direction)",
+    )
+    p.add_argument(
+        "--mirror-average",
+        action="store_true",
+        help="every network averaged with its mirror image (pso_lstm.mirror_average)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars or printed table")
     return p
 
@@ -221,6 +234,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         runs = load_held_out(args.data, progress=progress)
         if args.runs_limit is not None:
             runs = limit_runs(runs, args.runs_limit)
+        if args.both_ways:
+            runs = [*runs, *mirrored_runs(runs)]
         window = networks[0].meta.window_steps if networks else WINDOW_STEPS
         _check_runs(runs, networks, window)
         params = prepare_physics(filters, runs, notes)
@@ -255,7 +270,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 r,
                 window_steps=window,
                 physics={f.label: physics[(r.name, f.label)] for f in filters},
-                networks={n.label: predict(n, r) for n in networks},
+                networks={
+                    n.label: predict(n, r, mirror_average=args.mirror_average) for n in networks
+                },
             )
         )
     labels = [*BASELINES, *(f.label for f in filters), *(n.label for n in networks)]
@@ -292,6 +309,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "runs_scored": len(results),
         "runs_in_full_benchmark": expected_run_count(),
         "runs_limit_per_cell": args.runs_limit,
+        "both_ways": args.both_ways,
+        "mirror_average": args.mirror_average,
         "window_steps": window,
         "smoothing_steps": SMOOTHING_STEPS,
         "physics_params_file": None if args.physics_params is None else str(args.physics_params),

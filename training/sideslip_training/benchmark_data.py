@@ -13,6 +13,7 @@ benchmark's modules (data → :mod:`.benchmark_estimators` → :mod:`.benchmark_
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 from collections.abc import Sequence
@@ -213,6 +214,25 @@ def load_held_out(data: Path, *, progress: bool = True) -> list[HeldOutRun]:
         )
     )
     return out
+
+
+def mirrored_runs(runs: Sequence[HeldOutRun]) -> list[HeldOutRun]:
+    """Each run driven the other way round (:mod:`sideslip_msgs_py.mirror`; the simulator
+    and the filters are symmetric, so it is a drive the car could have made): the same
+    car, μ and kind, named ``<name>~mirror``, in the same cell."""
+    from sideslip_msgs_py.mirror import mirrored
+
+    from .training_data import MIRROR_SUFFIX
+
+    return [
+        dataclasses.replace(
+            r,
+            run=dataclasses.replace(
+                r.run, name=r.run.name + MIRROR_SUFFIX, samples=mirrored(r.run.samples)
+            ),
+        )
+        for r in runs
+    ]
 
 
 def limit_runs(runs: Sequence[HeldOutRun], per_cell: int) -> list[HeldOutRun]:

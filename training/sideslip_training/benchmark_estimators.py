@@ -136,17 +136,20 @@ def _disambiguate(networks: list[Network], explicit: set[str]) -> None:
             object.__setattr__(networks[i], "label", f"{n.label} ({n.path.stem})")
 
 
-def predict(network: Network, run: HeldOutRun) -> FloatArray:
+def predict(network: Network, run: HeldOutRun, *, mirror_average: bool = False) -> FloatArray:
     """The network's β̂ [rad] of ``run`` (samples[window-1:]) through predict_run, with the
-    car's parameters where predict_run takes a ``vehicle`` (vehicle-conditioned models)."""
+    car's parameters where predict_run takes a ``vehicle`` (vehicle-conditioned models);
+    ``mirror_average``: averaged with its mirror image (``pso_lstm.mirror_average``)."""
     from .evaluate import predict_run
 
     if "vehicle" in inspect.signature(predict_run).parameters:
         from sideslip_sim.vehicle import vehicle_from_dict
 
         vehicle = vehicle_from_dict(dict(run.vehicle))
-        return predict_run(network.model, network.meta, run.run, vehicle=vehicle)
-    return predict_run(network.model, network.meta, run.run)
+        return predict_run(
+            network.model, network.meta, run.run, vehicle=vehicle, mirror_average=mirror_average
+        )
+    return predict_run(network.model, network.meta, run.run, mirror_average=mirror_average)
 
 
 # --- the physics filters --------------------------------------------------------------------
