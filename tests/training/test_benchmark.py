@@ -278,7 +278,7 @@ def test_a_network_gets_the_car_when_predict_run_takes_one(held_out_bags: Path, 
 
     seen = []
 
-    def predict_run(model, meta, run, *, vehicle=None):
+    def predict_run(model, meta, run, *, vehicle=None, mirror_average=False):
         seen.append(vehicle)
         return np.zeros(len(run.samples) - meta.window_steps + 1)
 
