@@ -17,15 +17,13 @@ stay as they are. Cost: a second network on every sample (the filter runs once).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.artifact import ModelMetadata
 from sideslip_msgs_py.mirror import input_signs
-
-from .lstm_cells import FloatArray
 
 
 class MirrorMap:
@@ -69,10 +67,6 @@ class MirrorAveragedStream:
         if y is None or y_mirror is None:
             return None
         return self._map.output(y, y_mirror)
-
-    def run(self, rows: Iterable[npt.ArrayLike]) -> FloatArray:
-        out = [self.push(row) for row in rows]
-        return np.array([np.nan if y is None else y for y in out])
 
 
 class MirrorAveragedWindow:

@@ -94,15 +94,7 @@ def main(argv: list[str] | None = None) -> int:
             errors[car][name].append(np.abs(e[ok] - ref[ok]))
     for name in added:
         np.savez(files[name], **cached[name])
-    names = list(next(iter(errors.values())))
-    per_car = {
-        car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
-        for car, e in sorted(errors.items())
-    }
-    pooled = {
-        n: float(np.degrees(np.concatenate([x for e in errors.values() for x in e[n]]).mean()))
-        for n in names
-    }
+    names, per_car, pooled = mae_per_car_and_pooled(errors)
     ratios = {n: [c[n] / c["UKF"] for c in per_car.values()] for n in names if n != "UKF"}
     summary = {
         n: {
@@ -130,6 +122,23 @@ def main(argv: list[str] | None = None) -> int:
             f"{s['cars_at_most_half_the_ukf']} cars <= 0.5x)"
         )
     return 0
+
+
+def mae_per_car_and_pooled(
+    errors: dict[str, dict[str, list[np.ndarray]]],
+) -> tuple[list[str], dict[str, dict[str, float]], dict[str, float]]:
+    """From absolute errors [rad] per car and estimator (a list of runs' arrays each): the
+    estimators' names, their MAE [deg] per car and pooled over every sample."""
+    names = list(next(iter(errors.values())))
+    per_car = {
+        car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
+        for car, e in sorted(errors.items())
+    }
+    pooled = {
+        n: float(np.degrees(np.concatenate([x for e in errors.values() for x in e[n]]).mean()))
+        for n in names
+    }
+    return names, per_car, pooled
 
 
 def _cache_file(folder: Path, model: Path) -> Path:

@@ -35,6 +35,9 @@ from sideslip_training.export import load_model
 from sideslip_training.init_model import resolve
 from sideslip_training.inputs import InputSpec
 
+sys.path.insert(0, str(Path(__file__).parent))
+from merge_validation import mae_per_car_and_pooled
+
 
 def estimates(model: str, folders: list[str], cache: Path) -> None:
     """Writes, per run, the reference, the model's β̂, its β̂ on the mirrored run
@@ -85,15 +88,7 @@ def summary(caches: list[Path]) -> dict:
                 ok = np.isfinite(ref) & np.all([np.isfinite(e) for e in est.values()], axis=0)
                 for name, e in est.items():
                     errors[car][name].append(np.abs(e[ok] - ref[ok]))
-    names = list(next(iter(errors.values())))
-    per_car = {
-        car: {n: float(np.degrees(np.concatenate(e[n]).mean())) for n in names}
-        for car, e in sorted(errors.items())
-    }
-    pooled = {
-        n: float(np.degrees(np.concatenate([x for e in errors.values() for x in e[n]]).mean()))
-        for n in names
-    }
+    names, per_car, pooled = mae_per_car_and_pooled(errors)
     ratios = (
         {n: [c[n] / c["UKF"] for c in per_car.values()] for n in names if n != "UKF"}
         if "UKF" in names
