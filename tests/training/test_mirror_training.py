@@ -59,3 +59,32 @@ def test_auto_mirrors_only_a_small_training_part() -> None:
     assert wants_mirror("yes", 10**9, 10) and not wants_mirror("no", 10, 10)
     with pytest.raises(CliError, match="--mirror"):
         wants_mirror("maybe", 10, 10)
+
+
+def test_mirror_val_validates_both_ways_and_the_refit_mirrors_each_run_once(
+    make_arrays, write_arrays, tmp_path
+):
+    """``--mirror-val``: the validation part is judged on each run and its mirror image
+    (a fleet drive opens its manoeuvres one way); the test part stays as recorded, and the
+    refit on training + validation holds every mirror image exactly once."""
+    from sideslip_training.dataset import Run
+    from sideslip_training.training_data import TrainingData, with_mirrored
+
+    config = _train_on_one_recording(
+        make_arrays, write_arrays, tmp_path, "--mirror", "yes", "--mirror-val"
+    )
+    assert config["train_bags"] == ["drive", "drive~mirror"]
+    assert config["val_bags"] == ["drive@val", "drive@val~mirror"]
+    assert config["test_bags"] == ["drive@test"]
+    assert config["args"]["mirror_val"] is True
+
+    def run(name: str) -> Run:
+        return Run(name=name, path=tmp_path / name, samples=make_arrays(300, seed=1))
+
+    def refit_names(train: list[Run], val: list[Run], val_mirrored: bool) -> list[str]:
+        data = TrainingData([], train, val, [], None, None, None, 1, "bag", True, val_mirrored)  # type: ignore[arg-type]
+        return [r.name for r in data.refit_runs]
+
+    train = with_mirrored([run("t")])
+    assert refit_names(train, [run("v")], False) == ["t", "t~mirror", "v", "v~mirror"]
+    assert refit_names(train, with_mirrored([run("v")]), True) == ["t", "t~mirror", "v", "v~mirror"]

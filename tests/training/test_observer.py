@@ -49,6 +49,28 @@ def test_columns_are_the_ukf_back_ends_estimates_and_are_cached(sim_bag_dir: Pat
     assert np.all(other["ukf.road_friction"] == values["friction_initial"])
 
 
+def test_a_mirror_image_is_filtered_once_its_odd_columns_negated(
+    sim_bag_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """--mirror / --mirror-val: a run's mirror image is not filtered again; its columns
+    are the run's with the odd ones negated, as the (symmetric) filter itself gives."""
+    from sideslip_training.training_data import with_mirrored
+
+    monkeypatch.setenv("SIDESLIP_CACHE", str(tmp_path / "cache"))  # a cache of its own
+    run, twin = with_mirrored([load_runs([sim_bag_dir])[0][0]])
+    values = observer.default_values()
+    observer.precompute([run, twin], values, progress=False)
+    assert len(list(observer.cache_dir().glob("*.npz"))) == 1
+    derived, own = observer.columns(twin, values), observer.columns(run, values)
+    params, stl = observer.run_params(twin, None)
+    filtered = observer.compute(twin, params, values, stl)
+    for c in OBSERVER_COLUMNS:
+        np.testing.assert_allclose(derived[c], filtered[c], rtol=0, atol=1e-9, err_msg=c)
+    np.testing.assert_array_equal(derived["ukf.beta_rad"], -own["ukf.beta_rad"])
+    np.testing.assert_array_equal(derived["ukf.road_friction"], own["ukf.road_friction"])
+    assert len(list(observer.cache_dir().glob("*.npz"))) == 1
+
+
 def test_a_recording_without_a_car_needs_the_ukf_params_file(make_arrays, write_arrays):
     bag = write_arrays("real_car", make_arrays(300))
     runs, _ = load_runs([bag])

@@ -15,7 +15,6 @@ from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 from . import __version__
 from .train_plan import TrainPlan
 from .trainer import EpochRecord, TrainResult, train_model
-from .training_data import with_mirrored
 from .windows import WindowIndex
 
 
@@ -39,10 +38,7 @@ def refit(
     chose the epoch count), and the refit's own epoch history.
     """
     data = plan.data
-    val_runs = with_mirrored(data.val_runs) if data.mirror else data.val_runs
-    both = WindowIndex.build(
-        [*data.train_runs, *val_runs], plan.spec, data.normalizer, plan.window, data.stride
-    )
+    both = WindowIndex.build(data.refit_runs, plan.spec, data.normalizer, plan.window, data.stride)
     log(f"refit on training + validation ({len(both.ends)} windows), {selection.best_epoch} epochs")
     result = train_model(
         replace(plan.base, max_epochs=selection.best_epoch),

@@ -12,11 +12,15 @@ stored in the model file (``ModelMetadata.observer``) so deployment runs the sam
 The filter costs about 0.3 ms per sample in Python, so the columns of a run are cached
 on disk, keyed by a digest of the samples, the params file's contents and the values
 (``$SIDESLIP_CACHE`` or ``~/.cache/sideslip``/observer); :func:`precompute` fills the
-cache for many runs in worker processes.
+cache for many runs in worker processes. The filter is exactly symmetric (on a run mirrored
+left-right its β̂ is minus the run's to 1e-14 rad, docs/evaluation/direction), so a run's
+mirror image (``sideslip-train --mirror``, ``--mirror-val``) is not filtered again: its
+columns are the run's, the odd ones negated.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -34,6 +38,7 @@ import numpy.typing as npt
 import yaml
 
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope
+from sideslip_msgs_py.mirror import ODD_INPUTS, mirrored
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
 
 from .config import WINDOW_STEPS
@@ -262,6 +267,9 @@ def columns(
         return recent
     out = _load(path, len(run.samples.stamp_ns))
     if out is None:
+        twin = _load(_mirror_path(run, params, values, stl), len(run.samples.stamp_ns))
+        out = None if twin is None else _negate_odd(twin)
+    if out is None:
         out = compute(run, params, values, stl)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
@@ -271,6 +279,36 @@ def columns(
     while len(_RECENT) > _RECENT_RUNS:
         _RECENT.pop(next(iter(_RECENT)))
     return out
+
+
+def _mirror_path(
+    run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float
+) -> Path:
+    """Where the cache keeps the columns of ``run``'s mirror image."""
+    twin = dataclasses.replace(run, samples=mirrored(run.samples))
+    return cache_dir() / f"{_digest(twin, params, values, stl)}.npz"
+
+
+def _negate_odd(columns: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
+    """The observer columns of the mirrored run: the odd ones negated, μ̂ kept."""
+    return {c: -v if c in ODD_INPUTS else v for c, v in columns.items()}
+
+
+def without_mirror_images(
+    runs: Sequence[Run], values: Mapping[str, Any], params_file: str | None, car: str
+) -> list[Run]:
+    """``runs`` less each run whose mirror image comes before it (same car, the lateral
+    channels negated): :func:`columns` derives its columns from that image's."""
+    seen: set[str] = set()
+    kept = []
+    for run in runs:
+        params, stl = run_params(run, params_file, car=car)
+        twin = _mirror_path(run, params, values, stl).stem
+        if twin in seen:
+            continue
+        seen.add(_digest(run, params, values, stl))
+        kept.append(run)
+    return kept
 
 
 _RECENT_RUNS: Final = 4
@@ -303,8 +341,11 @@ def precompute(
     jobs: int = 1,
     progress: bool = True,
 ) -> None:
-    """Fill the cache for ``runs`` with ``jobs`` worker processes (fork)."""
+    """Fill the cache for ``runs`` with ``jobs`` worker processes (fork); a mirror image
+    of an earlier run is not filtered (:func:`without_mirror_images`)."""
     from tqdm import tqdm
+
+    runs = without_mirror_images(runs, values, params_file, car)
 
     bar = tqdm(
         total=len(runs), unit="run", desc="UKF observer", disable=not progress, file=sys.stderr

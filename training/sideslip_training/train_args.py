@@ -234,6 +234,16 @@ def train_parser() -> argparse.ArgumentParser:
         "training part is small (under 1 M samples with the quick profile, as for the "
         "stride; docs/training.md, 'Small data')",
     )
+    p.add_argument(
+        "--mirror-val",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="also validate on every validation run mirrored left-right, so early "
+        "stopping, the epoch kept, the validation figures and the intervals' calibration "
+        "count both turning directions: for simulated drives that open every manoeuvre "
+        "to the same side, as the fleet preset's do (default off: a recording is kept as "
+        "driven; docs/evaluation/direction)",
+    )
     p.add_argument("--batch-size", type=int, help="override the profile's batch size")
     p.add_argument("--swarm-size", type=int, help="override the profile's PSO swarm size")
     p.add_argument("--iterations", type=int, help="override the profile's PSO iterations")

@@ -198,6 +198,7 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
         topic_map=args.topic_map,
         stride=args.stride,
         mirror=args.mirror,
+        mirror_val=args.mirror_val,
         rehearse=args.rehearse,
     )
     data = load_training_data(

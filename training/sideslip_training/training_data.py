@@ -70,6 +70,8 @@ class DataChoice:
     stride: int | None
     mirror: str = "no"
     """``yes``, ``no`` or ``auto`` (:func:`wants_mirror`)."""
+    mirror_val: bool = False
+    """Also validate on every validation run mirrored left-right (``--mirror-val``)."""
     rehearse: Sequence[str] | None = None
     """Bags in the project's own topics (never read through ``topic_map``) added to the
     training part only: :func:`load_training_data`."""
@@ -91,6 +93,8 @@ class TrainingData:
     stride: int
     split: str
     mirror: bool = False
+    val_mirrored: bool = False
+    """``val_runs`` hold each validation run and its mirror image (``--mirror-val``)."""
     rehearsal_runs: tuple[Run, ...] = ()
     """The ``--rehearse`` runs, also in ``train_runs`` (after any mirrored ones)."""
 
@@ -99,6 +103,15 @@ class TrainingData:
         """``train_runs`` without the rehearsal: the recordings the model is fitted to."""
         rehearsal = {id(r) for r in self.rehearsal_runs}
         return [r for r in self.train_runs if id(r) not in rehearsal]
+
+    @property
+    def refit_runs(self) -> list[Run]:
+        """The runs of the refit on training + validation: the validation runs mirrored
+        as the training runs were, each mirror image once."""
+        val = self.val_runs
+        if self.mirror and not self.val_mirrored:
+            val = with_mirrored(val)
+        return [*self.train_runs, *val]
 
 
 MIRROR_SUFFIX: Final = "~mirror"
@@ -202,6 +215,12 @@ def load_training_data(
     if mirror:
         train_runs = with_mirrored(train_runs)
         log(f"mirror: {len(train_runs) // 2} training run(s) also mirrored left-right")
+    if choice.mirror_val:
+        # Simulated drives that open every manoeuvre to the same side (the fleet preset)
+        # judge a model on one turning direction only; both ways, early stopping and the
+        # epoch kept cannot favour a model that learnt the side (docs/evaluation/direction).
+        val_runs = with_mirrored(val_runs)
+        log(f"mirror: {len(val_runs) // 2} validation run(s) also mirrored left-right")
     needs_car = spec.needs_vehicle or spec.needs_observer
     rehearsal = _rehearsal(choice, load, [*train_runs, *val_runs, *test_runs], log, needs_car)
     train_runs = [*train_runs, *rehearsal]
@@ -250,6 +269,7 @@ def load_training_data(
         stride,
         mode,
         mirror,
+        choice.mirror_val,
         tuple(rehearsal),
     )
 
