@@ -315,6 +315,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--count", type=int, default=100, help="runs of the randomized and fleet presets"
     )
     parser.add_argument(
+        "--both-sides",
+        action="store_true",
+        help="fleet: every run turns the side it draws (by default only cornering does and "
+        "the scripted lane changes, sines, sweeps and step steers open to the left, as in "
+        "the data the shipped models were trained on; docs/evaluation/direction)",
+    )
+    parser.add_argument(
         "--jobs",
         type=int,
         default=min(2, os.cpu_count() or 1),
@@ -332,11 +339,15 @@ def build_parser() -> argparse.ArgumentParser:
 def _preset_runs(args: argparse.Namespace) -> list[VehicleRun]:
     """The runs the command line asks for; a held-out car in a training preset is an
     error (the held-out benchmark must stay unseen)."""
+    if args.both_sides and args.preset != "fleet":
+        raise PresetError(f"--both-sides is for --preset fleet, not {args.preset}")
     if args.preset in VEHICLE_PRESETS:
         if args.vehicle is not None:
             raise PresetError(f"--vehicle does not apply to --preset {args.preset}: its runs "
                               "name their own cars")  # fmt: skip
-        return vehicle_preset(args.preset, seed=args.seed, count=args.count)
+        return vehicle_preset(
+            args.preset, seed=args.seed, count=args.count, both_sides=args.both_sides
+        )
     maneuvers = preset(args.preset, seed=args.seed, count=args.count)
     vehicle = load_vehicle(args.vehicle or "paper_sedan")
     load_tire(str(vehicle.tire_path()))  # a bad tyre file is refused before any work

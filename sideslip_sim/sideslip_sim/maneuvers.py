@@ -5,7 +5,8 @@ into per-step inputs: an open-loop STL trace, a mask of the steps where the path
 following driver steers instead, the drive torque, and the reference path.
 
 Sign convention: STL > 0 steers left (δ > 0, yaw rate > 0, a_y > 0). A signed
-amplitude sets the first steering direction.
+amplitude sets the first steering direction; ``side = -1`` turns a whole manoeuvre the
+other way (its steering trace and its path mirrored left-right), for every family.
 
 Amplitudes. Table 3 of the paper gives STL amplitudes for sine and sweep steer; the
 vehicle file's STL ratio maps them to road-wheel angles (see README, "Steering scale").
@@ -68,6 +69,7 @@ class Maneuver:
     payload_kg: float = 0.0  # added at the sprung CG (randomised vehicle mass)
     scenario: str = ""  # Table 4 scenario id when family == "scenario"
     ay_fraction: float = AUTO_AY_FRACTION
+    side: int = 1  # +1: as defined (most families open to the left); -1: mirrored
 
     def __post_init__(self) -> None:
         if self.family not in FAMILIES:
@@ -96,6 +98,8 @@ class Maneuver:
             raise ManeuverError(
                 f"{self.name}: ay_fraction must be in (0, 1], got {self.ay_fraction}"
             )
+        if self.side not in (1, -1):
+            raise ManeuverError(f"{self.name}: side must be 1 or -1, got {self.side!r}")
 
     @property
     def speed_mps(self) -> float:
@@ -298,6 +302,8 @@ def build_program(m: Maneuver, vehicle: VehicleParams, model: SingleTrack, dt_s:
         path_x, path_y = builder.build()
     else:
         path_x, path_y = np.array([0.0, 1.0]), np.array([0.0, 0.0])
+    if m.side < 0:  # the car is symmetric: the same manoeuvre driven the other way round
+        stl, path_y = -np.asarray(stl), -np.asarray(path_y)
     return Program(
         stl_open_m=np.ascontiguousarray(stl, dtype=np.float64),
         use_driver=np.ascontiguousarray(use_driver, dtype=np.bool_),

@@ -209,21 +209,29 @@ class VehicleRun:
     maneuver: Maneuver
 
 
-def fleet(count: int, seed: int) -> list[VehicleRun]:
+def fleet(count: int, seed: int, *, both_sides: bool = False) -> list[VehicleRun]:
     """`count` runs on ceil(count / 4) cars of the fleet sampler (seeded), four runs per
     car: family, initial speed 30-130 km/h, road μ 0.3-1.0, steering severity 0.3-1.0
     of the μ-limited lateral acceleration (up to the friction limit), drive torque
-    scaled by μ and mass, duration 6-12 s. Held-out cars are never drawn."""
+    scaled by μ and mass, duration 6-12 s. Held-out cars are never drawn.
+
+    Cornering draws its side; the other scripted families open to the left unless
+    ``both_sides`` (then each run drives its drawn side: a model trained on one side
+    learns it, docs/evaluation/direction). Off by default so that a seed gives the data
+    the shipped models were trained on."""
     if count < 1:
         raise PresetError(f"fleet: count must be >= 1, got {count}")
     cars = sample_fleet(
         math.ceil(count / FLEET_RUNS_PER_CAR), seed, exclude_digests=held_out_digests()
     ).vehicles
-    return fleet_runs(cars, count, seed)
+    return fleet_runs(cars, count, seed, both_sides=both_sides)
 
 
-def fleet_runs(cars: Sequence[VehicleParams], count: int, seed: int) -> list[VehicleRun]:
-    """The fleet preset's runs on given cars (four per car, in order; see :func:`fleet`)."""
+def fleet_runs(
+    cars: Sequence[VehicleParams], count: int, seed: int, *, both_sides: bool = False
+) -> list[VehicleRun]:
+    """The fleet preset's runs on given cars (four per car, in order; see :func:`fleet`).
+    ``both_sides`` changes only which way a run turns, not what else is drawn."""
     if count > FLEET_RUNS_PER_CAR * len(cars):
         raise PresetError(f"fleet: {count} runs need {math.ceil(count / 4)} cars")
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xF1EE7, 1])
@@ -247,6 +255,8 @@ def fleet_runs(cars: Sequence[VehicleParams], count: int, seed: int) -> list[Veh
                     mu=mu,
                     seed=int(rng.integers(0, 2**31 - 1)),
                     ay_fraction=float(np.round(rng.uniform(0.3, 1.0), 3)),
+                    # Cornering's amplitude already carries its side.
+                    side=int(sign) if both_sides and family != "cornering" else 1,
                 ),
             )
         )
@@ -297,10 +307,12 @@ def _held_out_amplitude(car: VehicleParams, speed_kmh: float, mu: float) -> floa
     return auto_stl_amplitude(car, model, speed_kmh / 3.6, mu, HELD_OUT_AY_FRACTION)
 
 
-def vehicle_preset(name: str, *, seed: int = 0, count: int = 100) -> list[VehicleRun]:
-    """The runs (each with its car) of a multi-vehicle preset."""
+def vehicle_preset(
+    name: str, *, seed: int = 0, count: int = 100, both_sides: bool = False
+) -> list[VehicleRun]:
+    """The runs (each with its car) of a multi-vehicle preset (``both_sides``: fleet)."""
     if name == "fleet":
-        return fleet(count, seed)
+        return fleet(count, seed, both_sides=both_sides)
     if name == "held-out":
         return held_out()
     raise PresetError(f"unknown vehicle preset {name!r}; known: {', '.join(VEHICLE_PRESETS)}")

@@ -209,3 +209,24 @@ def test_roll_understeer_lowers_the_steady_yaw_rate_and_mirrors():
     assert left.roll_rad[-1] > 0  # body leans right in a left turn: φ > 0
     assert left.yaw_rate_radps[-200:].mean() < 0.97 * neutral
     np.testing.assert_allclose(left.yaw_rate_radps, -right.yaw_rate_radps, atol=1e-9)
+
+
+def test_both_sides_turns_each_scripted_run_its_drawn_way_and_changes_nothing_else():
+    """``--both-sides``: the same runs (cars, families, speeds, μ, seeds) as the default,
+    which opens every scripted manoeuvre to the left; now about half turn right."""
+    left, both = fleet(200, seed=4), fleet(200, seed=4, both_sides=True)
+    assert all(r.maneuver.side == 1 for r in left)
+    for a, b in zip(left, both, strict=True):
+        assert a.vehicle == b.vehicle
+        assert dataclasses.replace(b.maneuver, side=1) == a.maneuver
+    scripted = [r.maneuver for r in both if r.maneuver.family != "cornering"]
+    right = sum(m.side == -1 for m in scripted)
+    assert 0.35 * len(scripted) < right < 0.65 * len(scripted)
+    # Cornering keeps its side in the amplitude's sign, as before.
+    assert all(r.maneuver.side == 1 for r in both if r.maneuver.family == "cornering")
+
+
+def test_both_sides_is_refused_outside_the_fleet_preset(tmp_path, capsys):
+    args = ["--preset", "held-out", "--both-sides", "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    assert "--both-sides is for --preset fleet" in capsys.readouterr().err

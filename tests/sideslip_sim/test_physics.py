@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sideslip_sim import dynamics as dyn
-from sideslip_sim.maneuvers import Maneuver
+from sideslip_sim.maneuvers import Maneuver, ManeuverError
 from sideslip_sim.presets import paper_test
 from sideslip_sim.simulate import prepare, simulate
 from sideslip_sim.single_track import SingleTrack
@@ -243,3 +243,35 @@ def test_any_mirrored_manoeuvre_gives_an_exactly_mirrored_response(
     assert np.max(np.abs(left.beta_rad + right.beta_rad)) <= 1e-6 * scale + 1e-12
     np.testing.assert_allclose(left.yaw_rate_radps, -right.yaw_rate_radps, rtol=0, atol=1e-9)
     np.testing.assert_allclose(left.fz_n[:, [0, 2]], right.fz_n[:, [1, 3]], rtol=1e-9)
+
+
+MIRRORED_FAMILIES = ("double_lane_change", "sine_steer", "sweep_steer", "step_steer")
+MIRRORED_FAMILIES += ("random_steer", "cornering")
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    speed_kmh=st.floats(30.0, 110.0),
+    mu=st.floats(0.3, 1.0),
+    kind=st.sampled_from([*MIRRORED_FAMILIES, "scen1", "scen2", "scen3", "scen4"]),
+    vehicle_name=st.sampled_from(VEHICLES),
+)
+def test_side_minus_one_drives_any_manoeuvre_exactly_mirrored(speed_kmh, mu, kind, vehicle_name):
+    """``Maneuver.side = -1`` (the fleet's ``--both-sides``): the same manoeuvre, automatic
+    amplitude, path and driver included, turned the other way round."""
+    vehicle = load_vehicle(vehicle_name)
+    family, scenario = ("scenario", kind) if kind.startswith("scen") else (kind, "")
+    kwargs = {"duration_s": 3.0, "speed_kmh": speed_kmh, "torque_nm": 200.0, "mu": mu}
+    kwargs |= {"scenario": scenario, "seed": 5, "ay_fraction": 0.8}
+    left = simulate(vehicle, Maneuver("l", family, **kwargs))
+    right = simulate(vehicle, Maneuver("r", family, side=-1, **kwargs))
+    scale = max(np.max(np.abs(left.beta_rad)), 1e-9)
+    assert np.max(np.abs(left.beta_rad + right.beta_rad)) <= 1e-6 * scale + 1e-12
+    np.testing.assert_allclose(left.stl_m, -right.stl_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(left.y_m, -right.y_m, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(left.u_mps, right.u_mps, rtol=1e-9, atol=1e-9)
+
+
+def test_side_must_be_one_or_minus_one():
+    with pytest.raises(ManeuverError, match="side must be 1 or -1"):
+        Maneuver("x", "step_steer", 3.0, 60.0, 0.0, side=0)

@@ -106,11 +106,13 @@ def plan_runs(desc: Description, profile: FitProfile, seed: int) -> tuple[list[A
         ranges=desc.ranges(),
         exclude_digests=held_out_digests(),
     ).vehicles
-    train = fleet_runs(cars[:-1], FLEET_RUNS_PER_CAR * profile.cars, seed)
+    # Every run turns the side it draws: a fleet whose scripted manoeuvres all open to the
+    # left teaches the network which way the car turns (docs/evaluation/direction).
+    train = fleet_runs(cars[:-1], FLEET_RUNS_PER_CAR * profile.cars, seed, both_sides=True)
     test_car = cars[-1]
     test: list[VehicleRun] = []
     for k in range(-(-profile.test_runs // FLEET_RUNS_PER_CAR)):
-        for r in fleet_runs([test_car], FLEET_RUNS_PER_CAR, seed + 1000 + k):
+        for r in fleet_runs([test_car], FLEET_RUNS_PER_CAR, seed + 1000 + k, both_sides=True):
             m = dataclasses.replace(r.maneuver, name=f"test{k}_{r.maneuver.name}")
             test.append(VehicleRun(test_car, m))
     return train, test[: profile.test_runs]
@@ -192,7 +194,7 @@ def _parser() -> argparse.ArgumentParser:
 def recipe_options(profile: FitProfile) -> list[str]:
     """The ``sideslip-train`` options a fit of ``profile`` trains with, besides its data,
     start model, device and seed (also the recipe of ``held_out_fit.py``'s yardstick)."""
-    # The fleet around the car is simulated, already drives both ways and can be made
+    # The fleet around the car is simulated, drives both ways (plan_runs) and can be made
     # bigger at will: mirroring it would double the time for nothing.
     options = ["--profile", profile.train_profile, "--mirror", "no"]
     if profile.max_epochs is not None:
@@ -251,6 +253,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 profile = dataclasses.replace(profile, **{name: value})
         work = args.work or args.out.with_suffix(".fit")
         key = {"car": desc.digest(), "profile": dataclasses.asdict(profile), "seed": args.seed}
+        key["sides"] = "both"  # a work folder of the left-opening drives is not resumed
         stamp = work / "fit.json"
         reuse = stamp.exists() and json.loads(stamp.read_text()).get("key") == key
         if args.force or not reuse:

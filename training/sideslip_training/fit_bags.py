@@ -118,6 +118,7 @@ def simulate_rehearsal(
 
     # The simulator's version too: a folder from another simulator is not reused.
     key = {"car": desc.digest(), "runs": count, "seed": args.seed, "sim": sim_version}
+    key["sides"] = "both"  # rehearsal drives turn the side they draw (docs/evaluation/direction)
     if (out / "index.json").exists() and stamp.exists():
         if json.loads(stamp.read_text()) == key:
             stage(log, started, f"rehearsal: {count} runs already simulated (reused)")
@@ -136,8 +137,9 @@ def simulate_rehearsal(
     stage(log, started, f"rehearsal: simulating {count} runs of {len(cars)} cars like the car")
     stamp.unlink(missing_ok=True)
     prepare_output(out, force=True)
-    generate(fleet_runs(cars, count, seed), out, seed=seed, preset_name="fit-rehearsal",
-             jobs=args.jobs, progress=not args.quiet)  # fmt: skip
+    runs = fleet_runs(cars, count, seed, both_sides=True)
+    generate(runs, out, seed=seed, preset_name="fit-rehearsal", jobs=args.jobs,
+             progress=not args.quiet)  # fmt: skip
     stamp.write_text(json.dumps(key) + "\n")
     return out
 
