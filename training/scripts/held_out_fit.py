@@ -101,8 +101,10 @@ def write_true_ukf(car: VehicleParams, path: Path, tool: str) -> Path:
 
 
 def exact_runs(car: VehicleParams, seed: int) -> list[VehicleRun]:
-    """The fit's amount of driving, all of it on ``car`` itself."""
-    runs = fleet_runs([car] * PROFILE.cars, FLEET_RUNS_PER_CAR * PROFILE.cars, seed)
+    """The fit's amount of driving, all of it on ``car`` itself, turning both ways as the
+    fit's fleet does (since 2026-12-05)."""
+    count = FLEET_RUNS_PER_CAR * PROFILE.cars
+    runs = fleet_runs([car] * PROFILE.cars, count, seed, both_sides=True)
     return [
         VehicleRun(
             r.vehicle, dataclasses.replace(r.maneuver, name=f"exact{i:03d}_{r.maneuver.family}")

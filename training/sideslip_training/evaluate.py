@@ -207,7 +207,8 @@ def _network_output(model: SideslipNet, x: FloatArray, w: int) -> FloatArray:
     model.eval()
     with torch.inference_mode():
         for start in range(0, windows.shape[0], PREDICT_BATCH):
-            chunk = np.ascontiguousarray(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1))
+            # A copy always: a view that happens to be contiguous is read-only for torch.
+            chunk = np.array(windows[start : start + PREDICT_BATCH].transpose(0, 2, 1), order="C")
             out[start : start + chunk.shape[0]] = model(torch.from_numpy(chunk)).numpy()
     return out
 
