@@ -318,3 +318,6 @@ def test_both_ways_scores_each_run_and_its_mirror_image_in_its_cell(
             assert a == pytest.approx(b, rel=1e-6, abs=1e-9), label
     for cell in res["cells"]:
         assert cell["runs"] % 2 == 0
+    readme = (out / "README.md").read_text()  # says what was scored, counted both ways
+    assert f"{len(runs)} runs of the 216 of the full benchmark: each run and its mirror" in readme
+    assert "averaged with its own mirror image" in readme

@@ -307,7 +307,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "jobs": args.jobs,
         "data": str(args.data),
         "runs_scored": len(results),
-        "runs_in_full_benchmark": expected_run_count(),
+        "runs_in_full_benchmark": expected_run_count() * (2 if args.both_ways else 1),
         "runs_limit_per_cell": args.runs_limit,
         "both_ways": args.both_ways,
         "mirror_average": args.mirror_average,

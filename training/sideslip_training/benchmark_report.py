@@ -175,6 +175,8 @@ def readme_markdown(
     spun = [r for r in summary.runs if r.run.spin_onset_s is not None]
     left_out = sum(int(r.scored.size - r.scored.sum()) for r in summary.runs)
     window = context["window_steps"]
+    both_ways = bool(context.get("both_ways"))
+    full_runs = expected_run_count() * (2 if both_ways else 1)
     lines = [
         "# Held-out benchmark",
         "",
@@ -183,13 +185,21 @@ def readme_markdown(
         "each at road μ = 1.0, 0.7 and 0.4, through the Table 4 scenarios (scen1–scen4), a "
         "step steer and a sine sweep (80 km/h, 10 s), with sensor noise "
         f"{', '.join(f'`{n}`' for n in noise)}: {n_runs} runs"
+        + ("" if n_runs == full_runs else f" of the {full_runs} of the full benchmark")
         + (
-            ""
-            if n_runs == expected_run_count()
-            else f" of the {expected_run_count()} of the full benchmark"
+            ": each run and its mirror image, the same drive turned the other way round "
+            "(`--both-ways`), in the same cell"
+            if both_ways
+            else ""
         )
         + ". "
-        "Steering amplitudes are each car's own (a steady-state lateral acceleration of "
+        + (
+            "Every network is averaged with its own mirror image (`--mirror-average`, the "
+            "node's `pso_lstm.mirror_average`). "
+            if context.get("mirror_average")
+            else ""
+        )
+        + "Steering amplitudes are each car's own (a steady-state lateral acceleration of "
         "0.85·μ·g at the run's speed). These cars are scored here, once per model, and never "
         "trained or tuned on.",
         "",
