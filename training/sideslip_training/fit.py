@@ -252,8 +252,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise CliError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
                 profile = dataclasses.replace(profile, **{name: value})
         work = args.work or args.out.with_suffix(".fit")
-        key = {"car": desc.digest(), "profile": dataclasses.asdict(profile), "seed": args.seed}
-        key["sides"] = "both"  # a work folder of the left-opening drives is not resumed
+        # "sides": a work folder of the drives that opened to the left is not resumed.
+        key = {"car": desc.digest(), "profile": dataclasses.asdict(profile), "seed": args.seed,
+               "sides": "both"}  # fmt: skip
         stamp = work / "fit.json"
         reuse = stamp.exists() and json.loads(stamp.read_text()).get("key") == key
         if args.force or not reuse:

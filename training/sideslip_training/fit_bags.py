@@ -116,9 +116,10 @@ def simulate_rehearsal(
     stamp = work / "rehearsal.json"
     from sideslip_sim import __version__ as sim_version
 
-    # The simulator's version too: a folder from another simulator is not reused.
-    key = {"car": desc.digest(), "runs": count, "seed": args.seed, "sim": sim_version}
-    key["sides"] = "both"  # rehearsal drives turn the side they draw (docs/evaluation/direction)
+    # The simulator's version and the drives' sides too: a folder simulated by another
+    # simulator, or before the drives turned both ways (2026-12-05), is not reused.
+    key = {"car": desc.digest(), "runs": count, "seed": args.seed, "sim": sim_version,
+           "sides": "both"}  # fmt: skip
     if (out / "index.json").exists() and stamp.exists():
         if json.loads(stamp.read_text()) == key:
             stage(log, started, f"rehearsal: {count} runs already simulated (reused)")

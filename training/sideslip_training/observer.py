@@ -267,7 +267,8 @@ def columns(
         return recent
     out = _load(path, len(run.samples.stamp_ns))
     if out is None:
-        twin = _load(_mirror_path(run, params, values, stl), len(run.samples.stamp_ns))
+        twin_path = cache_dir() / f"{_mirror_digest(run, params, values, stl)}.npz"
+        twin = _load(twin_path, len(run.samples.stamp_ns))
         out = None if twin is None else _negate_odd(twin)
     if out is None:
         out = compute(run, params, values, stl)
@@ -281,12 +282,11 @@ def columns(
     return out
 
 
-def _mirror_path(
+def _mirror_digest(
     run: Run, params: Mapping[str, Any], values: Mapping[str, Any], stl: float
-) -> Path:
-    """Where the cache keeps the columns of ``run``'s mirror image."""
-    twin = dataclasses.replace(run, samples=mirrored(run.samples))
-    return cache_dir() / f"{_digest(twin, params, values, stl)}.npz"
+) -> str:
+    """The cache key of ``run``'s mirror image."""
+    return _digest(dataclasses.replace(run, samples=mirrored(run.samples)), params, values, stl)
 
 
 def _negate_odd(columns: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
@@ -303,8 +303,7 @@ def without_mirror_images(
     kept = []
     for run in runs:
         params, stl = run_params(run, params_file, car=car)
-        twin = _mirror_path(run, params, values, stl).stem
-        if twin in seen:
+        if _mirror_digest(run, params, values, stl) in seen:
             continue
         seen.add(_digest(run, params, values, stl))
         kept.append(run)
