@@ -309,6 +309,14 @@ def read_bag(path: str | Path) -> BagContents:
     )
 
 
+def read_run_metadata(path: str | Path) -> dict[str, Any]:
+    """The run metadata of the bag at ``path`` ({} when it has none), without reading
+    its messages. Raises as :func:`open_raw_bag` and :class:`BagError` for metadata that
+    is not a JSON object."""
+    path = Path(path)
+    return _run_metadata(path, open_raw_bag(path).custom_data())
+
+
 def _run_metadata(path: Path, custom: Mapping[str, str] | None) -> dict[str, Any]:
     if not custom or RUN_METADATA_KEY not in custom:
         return {}
@@ -386,5 +394,6 @@ __all__ = [
     "open_raw_bag",
     "open_writer",
     "read_bag",
+    "read_run_metadata",
     "write_bag",
 ]

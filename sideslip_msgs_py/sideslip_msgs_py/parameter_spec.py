@@ -14,6 +14,10 @@ class ParameterSpec:
     name: str
     default: bool | int | float | str
     description: str
+    takes_bool: bool = False
+    """A string parameter that also takes a bool (``:=true``, YAML ``true``), stored as
+    the string ``true`` / ``false``: a setting with more answers than on and off that
+    once was a bool."""
 
     @property
     def type_name(self) -> str:

@@ -66,7 +66,6 @@ BOOL_NAMES = {
     "ground_truth",
     "tyre_relaxation",
     "estimate_friction",
-    "mirror_average",
 }
 STR_NAMES = {
     "backend",
@@ -83,6 +82,7 @@ STR_NAMES = {
     "engine",
     "frame_id",
     "topic_map_file",
+    "mirror_average",  # auto / true / false (it takes a bool as well: ParameterSpec.takes_bool)
 }
 
 

@@ -105,3 +105,41 @@ def test_other_parameters_still_refuse_a_type_change(make_node, name, given) -> 
     spec = next(p for p in sim_node.PARAMETERS if p.name == name)
     with pytest.raises(ParameterTypeError, match=f"parameter {name} must be a "):
         declare(make_node({name: given}), [spec])
+
+
+TAKES_BOOL = [
+    pytest.param(prefix, spec, id=f"{node}:{prefix}{spec.name}")
+    for node, prefix, specs in DECLARED
+    for spec in specs
+    if spec.takes_bool
+]
+
+
+def test_mirror_average_is_a_string_that_takes_a_bool() -> None:
+    assert {p.values[1].name for p in TAKES_BOOL} == {"mirror_average"}
+
+
+@pytest.mark.parametrize(("prefix", "spec"), TAKES_BOOL)
+@pytest.mark.parametrize(
+    ("given", "stored"), [(True, "true"), (False, "false"), ("auto", "auto"), ("false", "false")]
+)
+def test_a_string_that_takes_a_bool_stores_it_as_true_or_false(
+    make_node, prefix, spec, given, stored
+) -> None:
+    """``-p pso_lstm.mirror_average:=true`` (once a bool parameter) still works; the
+    parameter is a read-only string from then on."""
+    name = f"{prefix}{spec.name}"
+    node = make_node({name: given})
+    assert declare(node, [spec], prefix=prefix)[spec.name] == stored
+    param = node.get_parameter(name)
+    assert param.type_ == Parameter.Type.STRING and param.value == stored
+    described = node.describe_parameter(name)
+    assert described.type == ParameterType.PARAMETER_STRING and described.read_only
+
+
+@pytest.mark.parametrize(("prefix", "spec"), TAKES_BOOL)
+def test_a_string_that_takes_a_bool_refuses_a_number(make_node, prefix, spec) -> None:
+    name = f"{prefix}{spec.name}"
+    node = make_node({name: 1})
+    with pytest.raises(ParameterTypeError, match=f"{name} must be a string or a bool, got 1"):
+        declare(node, [spec], prefix=prefix)

@@ -42,11 +42,19 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
     start_net, start_meta = load_model(resolve("fleet_lstm_paper"))
     run = load_runs([drives])[0][0]
     w = meta.window_steps
+    # As the node's default mirror_average auto: the shipped start learnt from simulated
+    # runs alone and is averaged with its mirror image, the model fitted to a recording
+    # (its offsets kept) is not.
+    assert meta.provenance["recordings"] == 1 and start_meta.provenance["recordings"] == 0
     traces = {
         mode: next(
             t
             for t in evaluate_runs(
-                [run], [("fitted", net, meta)], window_steps=w, beyond_fit_range=mode
+                [run],
+                [("fitted", net, meta)],
+                window_steps=w,
+                beyond_fit_range=mode,
+                mirror_average="auto",
             )
             if t.estimator == "fitted"
         )
@@ -57,7 +65,9 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
     s = run.samples
     beyond = fit.window_beyond(s.x_v_mps, s.y_a_mps2, s.yaw_rate_radps)[w - 1 :]
     assert beyond.any() and (~beyond).any()
-    own, start = predict_run(net, meta, run), predict_run(start_net, start_meta, run)
+    own = predict_run(net, meta, run)
+    start = predict_run(start_net, start_meta, run, mirror_average=True)
+    assert np.nanmax(np.abs(start - predict_run(start_net, start_meta, run))) > 1e-5
     np.testing.assert_array_equal(traces["start"].estimate_rad, np.where(beyond, start, own))
     np.testing.assert_array_equal(traces["model"].estimate_rad, own)
     # Recordings up to ~6 m/s² are not gentle: auto keeps the fitted model's own.
@@ -73,6 +83,9 @@ def test_evaluate_scores_the_start_model_beyond_the_recordings_as_the_node_publi
     # The node, sample by sample through the estimator, publishes the same.
     for mode in ("start", "auto"):
         backend = create_backend("pso_lstm", {"model_file": str(out), "beyond_fit_range": mode}, w)
+        assert "averaged with its mirror image" not in backend.model_id.split(", beyond")[0]
+        if mode == "start":
+            assert "averaged with its mirror image" in backend._start.model_id
         node = replay(Estimator(backend, EstimatorParams(window_steps=w)), replay_columns(s))
         np.testing.assert_allclose(node.beta_rad[w - 1 :], traces[mode].estimate_rad, atol=1e-6)
 

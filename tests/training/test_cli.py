@@ -84,8 +84,10 @@ def test_train_export_evaluate_and_run_in_the_estimator(sim_bag_dir: Path, tmp_p
     # The exported file in the estimator's back-end gives the trainer's network output.
     runs, _ = load_runs([sim_bag_dir])
     net, meta = load_model(model)
-    expected = predict_run(net, meta, runs[0])
+    # Its bags are simulated: the node's default averages it with its mirror image.
+    expected = predict_run(net, meta, runs[0], mirror_average="auto")
     backend = create_backend("pso_lstm", {"model_file": str(model)}, meta.window_steps)
+    assert backend.mirror_average
     est = Estimator(backend, EstimatorParams(window_steps=meta.window_steps, max_gap_s=1.0))
     got = _feed(est, runs[0].samples)
     assert len(got) == len(expected)
@@ -483,6 +485,8 @@ def test_fine_tuning_starts_from_the_models_weights_and_statistics(sim_bag_dir, 
     assert m1.feature_mean == m0.feature_mean and m1.beta_std == m0.beta_std  # kept
     assert m1.provenance["init"] == "base.safetensors"
     assert m1.provenance["normalization"] == "keep"
+    # Simulated bags only, the start's as well: the node's mirror_average auto is on.
+    assert m0.provenance["recordings"] == m1.provenance["recordings"] == 0
     refit = tmp_path / "refit.safetensors"
     assert train_main([*frozen, "--normalization", "refit", "--out", str(refit), *TINY]) == 0
     assert read_artifact(refit)[1].provenance["normalization"] == "refit"

@@ -8,6 +8,7 @@ import shutil
 import pytest
 
 from sideslip_estimator.backends.ukf_model import UkfParams
+from sideslip_msgs_py.artifact import read_artifact
 from sideslip_training.fit import main
 
 
@@ -36,6 +37,9 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
     code, out = fitted
     assert code == 0
     assert out.exists()
+    # The 12 recordings (split in time: each in training and validation) and the
+    # shipped start's none: not averaged with its mirror image by the node's default.
+    assert read_artifact(out)[1].provenance["recordings"] == 12
     ukf = UkfParams.load(str(out.with_suffix(".ukf.yaml")))
     assert ukf.name == "my_car"
     card = out.with_suffix(".md").read_text()

@@ -124,6 +124,7 @@ def test_the_cli_merges_trained_models_scores_and_calibrates_them(
     assert meta.hidden_units == 10 and meta.uncertainty is not None
     members = meta.provenance["merged"]
     assert [m["file"] for m in members] == models
+    assert meta.provenance["recordings"] == 0  # the members learnt from simulated bags
     assert meta.metrics["val_mae_deg"] <= np.mean([m["data_mae_deg"] for m in members]) + 1e-9
     assert "wrote" in capsys.readouterr().out
     # The merged file runs where a model runs: β̂ is the members' mean on a real bag.

@@ -12,7 +12,11 @@ import numpy as np
 import pytest
 
 from sideslip_estimator.backends import create_backend
+from sideslip_estimator.backends.base import BackendError
+from sideslip_estimator.backends.model_files import shipped_models
 from sideslip_estimator.estimator import Estimator, EstimatorParams
+from sideslip_msgs_py.artifact import read_artifact, write_artifact
+from sideslip_msgs_py.data_source import learnt_from_simulation_only
 from sideslip_msgs_py.mirror import input_signs, mirrored
 from sideslip_msgs_py.model_inputs import INPUT_SETS
 from sideslip_msgs_py.vehicle_description import VehicleDescription
@@ -77,3 +81,41 @@ def test_the_mirror_averaged_estimate_is_odd_and_the_node_gives_the_trainers(
     got = np.array(_feed(est, run.samples))
     assert got.size == expected[ok].size
     np.testing.assert_allclose(got, expected[ok], rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize(("recordings", "averaged"), [(0, True), (3, False), (None, False)])
+def test_auto_averages_only_a_model_that_records_it_learnt_from_simulation_alone(
+    tmp_path: Path, recordings: int | None, averaged: bool
+) -> None:
+    """The node's default (``auto``): on for simulation alone; off for a model fitted to
+    recordings (their offsets kept) and for a file that does not say; true and false
+    (also as bools, as ``-p pso_lstm.mirror_average:=true`` gives them) as set."""
+    tensors, meta = read_artifact(resolve("fleet_lstm_paper"))
+    provenance = {k: v for k, v in meta.provenance.items() if k != "recordings"}
+    if recordings is not None:
+        provenance["recordings"] = recordings
+    path = write_artifact(
+        tmp_path / "m.safetensors", tensors, dataclasses.replace(meta, provenance=provenance)
+    )
+    w = meta.window_steps
+
+    def backend(**values: object):  # type: ignore[no-untyped-def]
+        return create_backend("pso_lstm", {"model_file": str(path), **values}, w)
+
+    assert backend().mirror_average is averaged
+    assert ("averaged with its mirror image" in backend().model_id) is averaged
+    assert backend(mirror_average="true").mirror_average
+    assert backend(mirror_average=True).mirror_average
+    assert not backend(mirror_average=False).mirror_average
+    assert not backend(mirror_average="false").mirror_average
+    with pytest.raises(BackendError, match=r"pso_lstm\.mirror_average must be one of auto, true"):
+        backend(mirror_average="sometimes")
+
+
+def test_every_shipped_fleet_model_records_it_learnt_from_simulation_alone() -> None:
+    """So the node averages each with its mirror image by default; the paper's
+    reproduction models, written before the record existed, stay as they were."""
+    for name in shipped_models():
+        _, meta = read_artifact(resolve(name))
+        expected = True if name.startswith("fleet_") else None
+        assert learnt_from_simulation_only(meta.provenance) is expected, name

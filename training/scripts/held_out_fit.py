@@ -21,6 +21,9 @@ the ratio fit / exact go to ``OUT/summary.json`` and ``OUT/table.md``.
 
     python training/scripts/held_out_fit.py --held-out data/held-out --out data/held-out-fit
 
+Models are scored as the node runs them (``--mirror-average auto``); ``--mirror-average
+yes`` re-scores fits written before models recorded their training data's source.
+
 ``--features measurable`` (no Y_v) asks what a user with only the description gets: the
 fit fine-tunes its default start (``fleet_ukf_described`` since 2026-12-04, before that
 ``fleet_ukf_measurable``; ``fit_validation.py`` compares starts) with the UKF run on the
@@ -217,6 +220,14 @@ def main(argv: list[str] | None = None) -> int:
         help="with --features measurable: also train the yardstick on the car's exact "
         "simulation (true files) and report fit / exact",
     )
+    p.add_argument(
+        "--mirror-average",
+        choices=["auto", "yes", "no"],
+        default="auto",
+        help="sideslip-evaluate's (as the node: auto averages each model that records it "
+        "learnt from simulated runs only with its mirror image); an existing fit and "
+        "yardstick are re-scored, not trained again",
+    )
     args = p.parse_args(argv)
     if args.exact and (args.features != "measurable" or args.zero_shot):
         p.error("--exact needs --features measurable and a fit (no --zero-shot)")
@@ -243,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         report = work / "report"
         code = evaluate_main(["--model", str(fit), str(exact), str(resolve(SHIPPED_PAPER)),
                               "--data", *bags, "--out", str(report), "--force",
+                              "--mirror-average", args.mirror_average,
                               "--title", f"{name}: fit vs exact simulation"])  # fmt: skip
         if code:
             return code
@@ -318,6 +330,7 @@ def measurable(args: argparse.Namespace) -> int:
             report = work / f"report-{tag}"
             code = evaluate_main(["--model", *models, "--data", *bags, "--out", str(report),
                                   "--force", "--title", f"{name}: {tag} car files",
+                                  "--mirror-average", args.mirror_average,
                                   *files])  # fmt: skip
             if code:
                 return code

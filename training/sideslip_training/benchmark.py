@@ -32,6 +32,8 @@ from typing import Any, Final
 import numpy as np
 import yaml
 
+from sideslip_msgs_py.data_source import mirror_average_on
+
 from .benchmark_data import (
     PROG,
     BenchmarkError,
@@ -142,8 +144,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--mirror-average",
-        action="store_true",
-        help="every network averaged with its mirror image (pso_lstm.mirror_average)",
+        nargs="?",
+        choices=["auto", "yes", "no"],
+        const="yes",
+        default="auto",
+        help="networks averaged with their mirror image, as the node's "
+        "pso_lstm.mirror_average: yes (also the bare flag), no, or auto (default, as the "
+        "node): a network that records it learnt from simulated runs only",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bars or printed table")
     return p
@@ -311,6 +318,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "runs_limit_per_cell": args.runs_limit,
         "both_ways": args.both_ways,
         "mirror_average": args.mirror_average,
+        "mirror_averaged": {
+            n.label: mirror_average_on(args.mirror_average, n.meta.provenance) for n in networks
+        },
         "window_steps": window,
         "smoothing_steps": SMOOTHING_STEPS,
         "physics_params_file": None if args.physics_params is None else str(args.physics_params),

@@ -136,10 +136,11 @@ def _disambiguate(networks: list[Network], explicit: set[str]) -> None:
             object.__setattr__(networks[i], "label", f"{n.label} ({n.path.stem})")
 
 
-def predict(network: Network, run: HeldOutRun, *, mirror_average: bool = False) -> FloatArray:
+def predict(network: Network, run: HeldOutRun, *, mirror_average: bool | str = False) -> FloatArray:
     """The network's β̂ [rad] of ``run`` (samples[window-1:]) through predict_run, with the
     car's parameters where predict_run takes a ``vehicle`` (vehicle-conditioned models);
-    ``mirror_average``: averaged with its mirror image (``pso_lstm.mirror_average``)."""
+    ``mirror_average``: averaged with its mirror image (``pso_lstm.mirror_average``: a
+    bool, or ``auto`` / ``yes`` / ``no``)."""
     from .evaluate import predict_run
 
     if "vehicle" in inspect.signature(predict_run).parameters:

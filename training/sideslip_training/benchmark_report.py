@@ -193,12 +193,7 @@ def readme_markdown(
             else ""
         )
         + ". "
-        + (
-            "Every network is averaged with its own mirror image (`--mirror-average`, the "
-            "node's `pso_lstm.mirror_average`). "
-            if context.get("mirror_average")
-            else ""
-        )
+        + mirror_sentence(context)
         + "Steering amplitudes are each car's own (a steady-state lateral acceleration of "
         "0.85·μ·g at the run's speed). These cars are scored here, once per model, and never "
         "trained or tuned on.",
@@ -296,3 +291,33 @@ def readme_markdown(
     lines += [f"![{p.stem}](figures/{p.name})" for p in figures]
     lines += ["", "## MAE [deg] per run", "", run_table(summary), ""]
     return "\n".join(lines)
+
+
+def mirror_sentence(context: Mapping[str, Any]) -> str:
+    """Which networks the report averaged with their mirror image (``--mirror-average``,
+    the node's ``pso_lstm.mirror_average``), as a sentence ending in a space; reports
+    written before the per-network record said only yes or no."""
+    averaged = context.get("mirror_averaged")
+    if averaged is None:  # a bool then
+        averaged_all = context.get("mirror_average") is True
+        return (
+            "Every network is averaged with its own mirror image (`--mirror-average`, the "
+            "node's `pso_lstm.mirror_average`). "
+            if averaged_all
+            else ""
+        )
+    on = [label for label, yes in averaged.items() if yes]
+    setting = context.get("mirror_average", "auto")
+    if not on:
+        return f"No network is averaged with its mirror image (`--mirror-average {setting}`). "
+    which = (
+        "Every network is"
+        if len(on) == len(averaged)
+        else ", ".join(on) + (" is" if len(on) == 1 else " are")
+    )
+    return (
+        f"{which} averaged with its own mirror image (`--mirror-average {setting}`, as the "
+        "node's `pso_lstm.mirror_average`"
+        + (": those that record they learnt from simulated runs only" if setting == "auto" else "")
+        + "). "
+    )

@@ -19,6 +19,7 @@ import numpy.typing as npt
 import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata, zscore
+from sideslip_msgs_py.data_source import mirror_average_on
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope, publishes_prior
 from sideslip_msgs_py.mirror import input_signs
 from sideslip_msgs_py.model_inputs import INPUT_SETS
@@ -152,7 +153,7 @@ def predict_run(
     observer_params_file: str | None = None,
     outside_fleet: str = "auto",
     car: str = "recorded",
-    mirror_average: bool = False,
+    mirror_average: bool | str = False,
 ) -> FloatArray:
     """β̂ [rad] for every sample with a full window, i.e. samples[window-1:] (NaN where
     an input is not finite, e.g. the UKF observer gives no estimate below its speed).
@@ -165,7 +166,8 @@ def predict_run(
     (``auto`` for a residual on the UKF) the prior alone is β̂, as the node publishes it.
     ``car``: where the car's parameters come from for runs whose bags record one
     (:data:`~sideslip_training.inputs.CAR_SOURCES`). ``mirror_average``: the network
-    averaged with its mirror image, as the node's ``pso_lstm.mirror_average``.
+    averaged with its mirror image, as the node's ``pso_lstm.mirror_average`` (a bool, or
+    ``auto`` / ``yes`` / ``no``: :func:`~sideslip_msgs_py.data_source.mirror_average_on`).
     """
     fallback = vehicle
     if fallback is None and meta.vehicle is not None:
@@ -190,7 +192,8 @@ def predict_run(
     raw = spec.inputs(run)
     x = zscore(raw, meta.feature_mean, meta.feature_std)
     out = _network_output(model, x, w)
-    if mirror_average:  # the node's pso_lstm.mirror_average (sideslip_estimator.mirror_average)
+    # The node's pso_lstm.mirror_average (sideslip_estimator.mirror_average).
+    if mirror_average_on(mirror_average, meta.provenance):
         mirror = zscore(raw * input_signs(meta.features), meta.feature_mean, meta.feature_std)
         out = 0.5 * (out - _network_output(model, mirror, w)) - meta.beta_mean / meta.beta_std
     prior = spec.prior_rad(run, w)[w - 1 :]
@@ -256,7 +259,7 @@ def evaluate_runs(
     car: str = "recorded",
     filters: Mapping[str, str] | None = None,
     beyond_fit_range: str = "auto",
-    mirror_average: bool = False,
+    mirror_average: bool | str = False,
 ) -> list[Trace]:
     """Traces of every estimator on every run: baselines first (β = 0, kinematic raw and
     smoothed, then the physics ``filters``: back-end name → params file), then the models
@@ -268,7 +271,8 @@ def evaluate_runs(
     σ of the shipped model it started from (``auto``: when the recordings were gentle
     and that model is shipped with the same training data; ``start``: always, requiring
     it), or its own (``model``). ``mirror_average``: every model (and start model)
-    averaged with its mirror image, as the estimator's parameter."""
+    averaged with its mirror image, as the estimator's parameter (``auto``: each model
+    by its own record of its training data)."""
     car_kwargs = {"vehicle": vehicle, "observer_params_file": observer_params_file, "car": car}
     car_kwargs["mirror_average"] = mirror_average
     starts = {name: start_of(meta, beyond_fit_range, name) for name, _, meta in models}

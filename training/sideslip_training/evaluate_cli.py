@@ -70,9 +70,14 @@ def _evaluate_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--mirror-average",
-        action="store_true",
-        help="average every model with its mirror image (the node's pso_lstm.mirror_average: "
-        "a right turn answered as the mirrored left one; docs/evaluation/direction)",
+        nargs="?",
+        choices=["auto", "yes", "no"],
+        const="yes",
+        default="auto",
+        help="average a model with its mirror image, as the node's pso_lstm.mirror_average "
+        "(a right turn answered as the mirrored left one; docs/evaluation/direction): yes "
+        "(also the bare flag), no, or auto (default, as the node): for a model that records "
+        "it learnt from simulated runs only",
     )
     add_car_files_arguments(p)
     p.add_argument(

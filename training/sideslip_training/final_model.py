@@ -10,6 +10,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from sideslip_msgs_py.artifact import ModelMetadata
+from sideslip_msgs_py.data_source import RECORDINGS_KEY, recordings_in, total_recordings
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 
 from . import __version__
@@ -70,6 +71,9 @@ def model_metadata(
     training data, metrics, PSO record, provenance with ``wall_s`` [s] so far)."""
     normalizer, init = plan.data.normalizer, plan.init
     spec, vehicle = plan.spec, plan.vehicle
+    recordings = total_recordings(
+        [plan.data.recordings, *([recordings_in(init.meta.provenance)] if init else [])]
+    )
     envelope = None
     if spec.needs_observer:
         from .observer import training_envelope
@@ -111,6 +115,10 @@ def model_metadata(
                 if init is not None
                 else {}
             ),
+            # Zero only when this model and its start learnt from simulated runs alone
+            # (what the node's mirror_average auto goes by); absent when the start's
+            # file does not say.
+            **({} if recordings is None else {RECORDINGS_KEY: recordings}),
             "command": command,
             "profile": plan.profile.name,
             "device": result.device,

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from sideslip_msgs_py.artifact import ModelMetadata
+from sideslip_msgs_py.data_source import RECORDINGS_KEY, recordings_in, total_recordings
 from sideslip_msgs_py.fleet_envelope import EnvelopeError, FleetEnvelope
 
 from .model import ModelConfig, SideslipNet
@@ -145,6 +146,7 @@ def merged_metadata(
         }
         for m, name, share in zip(metas, names, shares, strict=True)
     ]
+    recordings = total_recordings(recordings_in(m.provenance) for m in metas)
     return replace(
         metas[0],
         hidden_units=sum(m.hidden_units for m in metas),
@@ -153,7 +155,10 @@ def merged_metadata(
         training_data_digest=digest,
         metrics={},
         pso=None,
-        provenance={"merged": members},
+        provenance={
+            "merged": members,
+            **({} if recordings is None else {RECORDINGS_KEY: recordings}),
+        },
         vehicle=metas[0].vehicle if all(m.vehicle == metas[0].vehicle for m in metas) else None,
         uncertainty=None,
         envelope=merged_envelope(metas),

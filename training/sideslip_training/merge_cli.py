@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from sideslip_msgs_py.artifact import ArtifactError
+from sideslip_msgs_py.data_source import RECORDINGS_KEY
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
@@ -127,6 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         },
         provenance={
             "merged": members_meta,
+            **{k: v for k, v in meta.provenance.items() if k == RECORDINGS_KEY},
             "scored_and_calibrated_on": [str(d) for d in args.data],
             "command": "sideslip-merge " + " ".join(sys.argv[1:] if argv is None else argv),
         },

@@ -18,6 +18,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from sideslip_msgs_py.data_source import is_simulated
 from sideslip_msgs_py.mirror import mirrored
 from sideslip_msgs_py.topic_map import TopicMap
 
@@ -103,6 +104,14 @@ class TrainingData:
         """``train_runs`` without the rehearsal: the recordings the model is fitted to."""
         rehearsal = {id(r) for r in self.rehearsal_runs}
         return [r for r in self.train_runs if id(r) not in rehearsal]
+
+    @property
+    def recordings(self) -> int:
+        """How many training and validation bags are recordings, not simulated runs
+        (:mod:`sideslip_msgs_py.data_source`); a bag and its mirror image count once."""
+        return len(
+            {r.bag for r in (*self.train_runs, *self.val_runs) if not is_simulated(r.run_metadata)}
+        )
 
     @property
     def refit_runs(self) -> list[Run]:

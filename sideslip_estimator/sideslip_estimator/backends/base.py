@@ -74,7 +74,8 @@ def parameter_values(
     """The spec defaults overlaid with ``values``, each checked against its spec's type.
 
     Unknown keys are refused (a typo must not fall back to a default silently); an int
-    is accepted for a double, nothing else is converted.
+    is accepted for a double and a bool for a string that takes one (stored as ``true``
+    / ``false``, as the node does); nothing else is converted.
     """
     known = {p.name: p for p in specs}
     unknown = sorted(set(values) - set(known))
@@ -85,7 +86,9 @@ def parameter_values(
     for name, spec in known.items():
         v = values.get(name, spec.default)
         kind = type(spec.default)
-        if isinstance(v, bool) != (kind is bool):
+        if spec.takes_bool and isinstance(v, bool):
+            ok, v = True, "true" if v else "false"
+        elif isinstance(v, bool) != (kind is bool):
             ok = False
         elif kind is float:
             ok = isinstance(v, numbers.Real)

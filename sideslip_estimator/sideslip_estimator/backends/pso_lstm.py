@@ -64,6 +64,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.artifact import VALIDATION_RMSE_KEY, denormalize_beta
+from sideslip_msgs_py.data_source import mirror_average_on
 from sideslip_msgs_py.model_inputs import (
     OBSERVER_COLUMNS,
     columns_of_rows,
@@ -171,7 +172,10 @@ class PsoLstmBackend:
         """``numba`` or ``numpy`` (the streaming engine) or ``torch`` (the whole window
         per sample): the one that runs."""
         self._window_net = TorchWindow(tensors, meta, threads) if engine == "torch" else None
-        self.mirror_average = bool(v["mirror_average"])
+        try:
+            self.mirror_average = mirror_average_on(v["mirror_average"], meta.provenance)
+        except ValueError as err:
+            raise BackendError(f"pso_lstm.mirror_average {err}") from None
         if self.mirror_average:  # the network and its mirror image (..mirror_average)
             mirror = streaming_engine(tensors, meta, kernel=kernel)
             self._stream = MirrorAveragedStream(self._stream, mirror, meta)

@@ -73,13 +73,17 @@ PSO_LSTM_PARAMETERS: Final = (
     ),
     ParameterSpec(
         "mirror_average",
-        False,
+        "auto",
         "Average the network with its own mirror image (the inputs of the same drive "
         "turned the other way, the output negated back): the estimate of a right turn "
-        "is then exactly that of the mirrored left turn. The fleet models learnt from "
-        "drives that start most manoeuvres to the left and err more on mirrored drives; "
-        "on validation cars driven both ways it lowered every UKF-anchored model's MAE "
-        "(docs/evaluation/direction). Costs a second network pass per sample.",
+        "is then exactly that of the mirrored left turn. true, false, or auto: on for a "
+        "model that records it learnt from simulated runs only (every shipped model; "
+        "a car is symmetric, the fleet's drives were not), off for one that learnt from "
+        "recordings (their sensor offsets and the car's own asymmetry would be "
+        "cancelled) or whose file does not say. On the held-out cars it lowered every "
+        "fleet model's MAE (docs/evaluation/direction). Costs a second network pass per "
+        "sample.",
+        takes_bool=True,
     ),
     ParameterSpec(
         "threads",

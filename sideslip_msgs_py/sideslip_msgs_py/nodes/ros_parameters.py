@@ -34,6 +34,9 @@ def declare(node: Node, specs: Iterable[ParameterSpec], prefix: str = "") -> dic
         if isinstance(spec.default, float):
             values[spec.name] = _declare_double(node, name, spec)
             continue
+        if spec.takes_bool:
+            values[spec.name] = _declare_string_or_bool(node, name, spec)
+            continue
         descriptor = ParameterDescriptor(description=spec.description, read_only=True)
         try:
             param = node.declare_parameter(name, spec.default, descriptor)
@@ -66,5 +69,28 @@ def _declare_double(node: Node, name: str, spec: ParameterSpec) -> float:
     )
     node.set_descriptor(
         name, final, ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+    )
+    return value
+
+
+def _declare_string_or_bool(node: Node, name: str, spec: ParameterSpec) -> str:
+    """Declare a string that also takes a bool (:attr:`ParameterSpec.takes_bool`),
+    stored as ``true`` / ``false``; fixed as a read-only string as in
+    :func:`_declare_double`."""
+    dynamic = ParameterDescriptor(description=spec.description, dynamic_typing=True)
+    param = node.declare_parameter(name, spec.default, dynamic)
+    if param.type_ == Parameter.Type.BOOL:
+        value = "true" if param.value else "false"
+    elif param.type_ == Parameter.Type.STRING:
+        value = str(param.value)
+    else:
+        kind = param.type_.name.lower()
+        msg = f"parameter {name} must be a string or a bool, got {param.value!r} ({kind})"
+        raise ParameterTypeError(msg)
+    final = ParameterDescriptor(
+        description=spec.description, read_only=True, type=ParameterType.PARAMETER_STRING
+    )
+    node.set_descriptor(
+        name, final, ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
     )
     return value
