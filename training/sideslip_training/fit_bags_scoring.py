@@ -38,10 +38,13 @@ def scored_traces(
     ukf_file: Path | None,
     described_ukf: Path | None,
     runs: Sequence[Any] | None = None,
+    mirror_average: bool | str = "auto",
 ) -> tuple[list[Any], list[str]]:
     """Every estimator's traces on each recording's test part (its last ``fraction``, as
     ``sideslip-train`` cut it; ``None``: the whole recording), resampled to the models'
-    step, and the models' labels."""
+    step, and the models' labels. ``mirror_average``: as the node's parameter; ``auto``
+    (the node's default) averages the shipped start, which learnt from simulated runs
+    alone, and not the model fitted to the recordings."""
     import numpy as np
 
     from sideslip_msgs_py.vehicle_description import VehicleDescription
@@ -74,6 +77,7 @@ def scored_traces(
         observer_params_file=str(ukf_file) if measurable else None,
         car="given" if measurable else "recorded",
         filters={"ukf": str(ukf_file)} if measurable else None,
+        mirror_average=mirror_average,
     )
     if measurable:
         # The kinematic baselines read the lateral velocity: in a recording that is the

@@ -59,6 +59,7 @@ def pooled_test_metrics(
         # The trained network itself, also beyond its recordings' range (the node and
         # sideslip-fit's card hand over to the start model there: beyond_fit_range).
         beyond_fit_range="model",
+        mirror_average=False,  # as validated and selected (the node's auto may average it)
     )
     out: dict[str, dict[str, float]] = {
         name: {"mae_deg": m.mae, "rmse_deg": m.rmse, "r2": m.r2, "samples": m.n}
