@@ -307,7 +307,8 @@ def test_both_ways_scores_each_run_and_its_mirror_image_in_its_cell(
     res = _results(out)
     runs = {r["run"]: r for r in res["runs"]}
     assert len(runs) == 2 * len(PICKS)
-    assert res["both_ways"] and res["mirror_average"]
+    assert res["both_ways"] and res["mirror_average"] == "yes"
+    assert res["mirror_averaged"] == {"tiny": True}
     for name, run in runs.items():
         if name.endswith("~mirror"):
             continue
@@ -321,3 +322,24 @@ def test_both_ways_scores_each_run_and_its_mirror_image_in_its_cell(
     readme = (out / "README.md").read_text()  # says what was scored, counted both ways
     assert f"{len(runs)} runs of the 216 of the full benchmark: each run and its mirror" in readme
     assert "averaged with its own mirror image" in readme
+
+
+@pytest.mark.parametrize(
+    ("context", "says"),
+    [
+        ({"mirror_average": "auto", "mirror_averaged": {"a": True, "b": True}}, "Every network is"),
+        ({"mirror_average": "auto", "mirror_averaged": {"a": True, "b": False}}, "a is averaged"),
+        (
+            {"mirror_average": "yes", "mirror_averaged": {"a": True, "b": True, "c": False}},
+            "a and b are averaged with their own mirror images",
+        ),
+        ({"mirror_average": "no", "mirror_averaged": {"a": False}}, "No network is averaged"),
+        ({"mirror_average": True}, "Every network is"),  # a report of before 2026-12-06
+        ({"mirror_average": False}, ""),
+    ],
+)
+def test_the_report_names_the_networks_it_averaged_with_their_mirror_image(context, says) -> None:
+    from sideslip_training.benchmark_report import mirror_sentence
+
+    sentence = mirror_sentence(context)
+    assert says in sentence and (says or not sentence)

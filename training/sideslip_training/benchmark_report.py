@@ -310,14 +310,13 @@ def mirror_sentence(context: Mapping[str, Any]) -> str:
     setting = context.get("mirror_average", "auto")
     if not on:
         return f"No network is averaged with its mirror image (`--mirror-average {setting}`). "
-    which = (
-        "Every network is"
-        if len(on) == len(averaged)
-        else ", ".join(on) + (" is" if len(on) == 1 else " are")
+    how = f"(`--mirror-average {setting}`, as the node's `pso_lstm.mirror_average`" + (
+        ": each network whose file records that it learnt from simulated runs only)"
+        if setting == "auto"
+        else ")"
     )
-    return (
-        f"{which} averaged with its own mirror image (`--mirror-average {setting}`, as the "
-        "node's `pso_lstm.mirror_average`"
-        + (": those that record they learnt from simulated runs only" if setting == "auto" else "")
-        + "). "
-    )
+    if len(on) == len(averaged):
+        return f"Every network is averaged with its own mirror image {how}. "
+    if len(on) == 1:
+        return f"{on[0]} is averaged with its own mirror image {how}. "
+    return f"{', '.join(on[:-1])} and {on[-1]} are averaged with their own mirror images {how}. "
