@@ -69,6 +69,16 @@ def test_the_cli_writes_the_model_with_its_uncertainty_and_evaluate_scores_it(
         np.testing.assert_array_equal(after[0][name], tensor)  # the same network
     assert 0.9 < after[1].metrics["interval_calibration"]["coverage_scale_half"] <= 1.0
     assert "wrote" in capsys.readouterr().out
+    # Trained on simulated bags alone: calibrated, as the node publishes it, on the network
+    # averaged with its mirror image; --mirror-average no calibrates the network alone.
+    assert after[1].metrics["interval_calibration"]["mirror_averaged"] == 1.0
+    alone = tmp_path / "alone.safetensors"
+    calibrate_alone = ["--model", str(model), "--data", str(sim_bag_dir), "--out", str(alone)]
+    assert main([*calibrate_alone, "--mirror-average", "no"]) == 0
+    alone_meta = read_artifact(alone)[1]
+    assert alone_meta.metrics["interval_calibration"]["mirror_averaged"] == 0.0
+    assert alone_meta.uncertainty != after[1].uncertainty
+    capsys.readouterr()
     report = tmp_path / "report"
     assert (
         evaluate_main(["--model", str(out), "--data", str(sim_bag_dir), "--out", str(report)]) == 0

@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sideslip_msgs_py.artifact import ArtifactError, read_artifact, write_artifact
+from sideslip_msgs_py.data_source import mirror_average_on
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.uncertainty import TERMS, Uncertainty, terms
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
@@ -296,6 +297,14 @@ def _parser() -> argparse.ArgumentParser:
         "did not bring coverage on the car's other drives nearer the asked share: "
         "docs/evaluation/intervals)",
     )
+    p.add_argument(
+        "--mirror-average",
+        choices=["auto", "yes", "no"],
+        default="auto",
+        help="calibrate on the errors of the network averaged with its mirror image, as the "
+        "node's pso_lstm.mirror_average: auto (default, as the node) for a model that records "
+        "it learnt from simulated runs only",
+    )
     add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")
     p.epilog = (
@@ -333,6 +342,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if described and old is not None and old.described is not None:
             # --scale-only rescales the σ for described files, not the model's own.
             start = replace(meta, uncertainty=old.described.to_dict())
+        # σ for the estimate the node publishes with the same setting.
+        mirror = mirror_average_on(args.mirror_average, meta.provenance)
         unc, figures = calibrate(
             runs,
             model,
@@ -340,8 +351,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             coverage=args.coverage,
             seed=args.seed,
             scale_only=args.scale_only,
-            car=car,
+            car={**car, "mirror_average": mirror},
         )
+        figures = {**figures, "mirror_averaged": float(mirror)}
         if described:
             assert old is not None  # for_described_files checks it
             unc = replace(old, described=replace(unc, fit_range=None))

@@ -32,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, Final
 
+from sideslip_msgs_py.data_source import mirror_average_on
+
 from .cli_errors import CliError
 from .dataset import DatasetError
 from .train_plan import TrainPlan
@@ -110,9 +112,18 @@ def calibrate_selection(
         if mode == "scale":
             start = _start_sigma(plan, meta, car, log)
             meta = replace(meta, uncertainty=start.to_dict())
+        # σ for what the node publishes by default: a model that learnt from simulated
+        # runs alone averaged with its mirror image (pso_lstm.mirror_average auto).
+        mirror = mirror_average_on("auto", meta.provenance)
         unc, figures = calibrate(
-            plan.data.val_runs, model, meta, seed=seed, scale_only=mode == "scale", car=car
+            plan.data.val_runs,
+            model,
+            meta,
+            seed=seed,
+            scale_only=mode == "scale",
+            car={**car, "mirror_average": mirror},
         )
+        figures = {**figures, "mirror_averaged": float(mirror)}
         if mode == "scale":
             unc = replace(unc, fit_range=_fit_range(plan, start.scale))
     except (DatasetError, FilterError, FeatureError, ValueError) as err:
