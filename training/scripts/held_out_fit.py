@@ -75,6 +75,7 @@ from sideslip_training.fit import (
 from sideslip_training.fit import main as fit_main
 from sideslip_training.identify_axles import main as identify_main
 from sideslip_training.init_model import resolve
+from sideslip_training.inputs import add_mirror_average_argument
 from sideslip_training.physics_params import nominal_parameters, params_yaml
 
 PROFILE = FIT_PROFILES["quick"]
@@ -220,14 +221,8 @@ def main(argv: list[str] | None = None) -> int:
         help="with --features measurable: also train the yardstick on the car's exact "
         "simulation (true files) and report fit / exact",
     )
-    p.add_argument(
-        "--mirror-average",
-        choices=["auto", "yes", "no"],
-        default="auto",
-        help="sideslip-evaluate's (as the node: auto averages each model that records it "
-        "learnt from simulated runs only with its mirror image); an existing fit and "
-        "yardstick are re-scored, not trained again",
-    )
+    # sideslip-evaluate's; an existing fit and yardstick are re-scored, not trained again.
+    add_mirror_average_argument(p, "every model")
     args = p.parse_args(argv)
     if args.exact and (args.features != "measurable" or args.zero_shot):
         p.error("--exact needs --features measurable and a fit (no --zero-shot)")

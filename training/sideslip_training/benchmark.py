@@ -61,6 +61,7 @@ from .benchmark_figures import plot_all
 from .benchmark_report import cell_table, readme_markdown, verdict_markdown
 from .benchmark_scores import collect, results_json, summarize
 from .config import WINDOW_STEPS
+from .inputs import add_mirror_average_argument
 from .physics_params import steering_limit_m
 
 EXIT_BAD_INPUT: Final = 2
@@ -142,16 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
         "in the same cell): the fleet's training drives start most manoeuvres to the left, "
         "and so do the benchmark's (docs/evaluation/direction)",
     )
-    p.add_argument(
-        "--mirror-average",
-        nargs="?",
-        choices=["auto", "yes", "no"],
-        const="yes",
-        default="auto",
-        help="networks averaged with their mirror image, as the node's "
-        "pso_lstm.mirror_average: yes (also the bare flag), no, or auto (default, as the "
-        "node): a network that records it learnt from simulated runs only",
-    )
+    add_mirror_average_argument(p, "every network")
     p.add_argument("--quiet", action="store_true", help="no progress bars or printed table")
     return p
 

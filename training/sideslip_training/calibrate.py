@@ -33,7 +33,7 @@ from .dataset import DatasetError, Run, load_runs
 from .evaluate import predict_run
 from .export import load_model
 from .init_model import InitError, resolve
-from .inputs import add_car_files_arguments
+from .inputs import add_car_files_arguments, add_mirror_average_argument
 from .splits import split_runs
 
 FloatArray = npt.NDArray[np.float64]
@@ -297,14 +297,7 @@ def _parser() -> argparse.ArgumentParser:
         "did not bring coverage on the car's other drives nearer the asked share: "
         "docs/evaluation/intervals)",
     )
-    p.add_argument(
-        "--mirror-average",
-        choices=["auto", "yes", "no"],
-        default="auto",
-        help="calibrate on the errors of the network averaged with its mirror image, as the "
-        "node's pso_lstm.mirror_average: auto (default, as the node) for a model that records "
-        "it learnt from simulated runs only",
-    )
+    add_mirror_average_argument(p, "calibrate on the errors of the network")
     add_car_files_arguments(p)
     p.add_argument("--force", action="store_true", help="replace --out")
     p.epilog = (

@@ -21,7 +21,7 @@ from .config import DT_S, WINDOW_STEPS
 from .dataset import DatasetError, load_runs
 from .export import load_model
 from .init_model import InitError, resolve
-from .inputs import add_car_files_arguments
+from .inputs import add_car_files_arguments, add_mirror_average_argument
 
 
 def _evaluate_parser() -> argparse.ArgumentParser:
@@ -68,17 +68,7 @@ def _evaluate_parser() -> argparse.ArgumentParser:
         "when the recordings stayed under 5 m/s² and that model is shipped with the same "
         "training data",
     )
-    p.add_argument(
-        "--mirror-average",
-        nargs="?",
-        choices=["auto", "yes", "no"],
-        const="yes",
-        default="auto",
-        help="average a model with its mirror image, as the node's pso_lstm.mirror_average "
-        "(a right turn answered as the mirrored left one; docs/evaluation/direction): yes "
-        "(also the bare flag), no, or auto (default, as the node): for a model that records "
-        "it learnt from simulated runs only",
-    )
+    add_mirror_average_argument(p, "every model (and start model)")
     add_car_files_arguments(p)
     p.add_argument(
         "--single-track-params",

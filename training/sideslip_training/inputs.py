@@ -55,6 +55,23 @@ def add_car_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_mirror_average_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--mirror-average auto|yes|no`` (the bare flag: yes; default auto, as the node's
+    ``pso_lstm.mirror_average``; :func:`sideslip_msgs_py.data_source.mirror_average_on`).
+    ``what``: what is averaged, as the help's opening words."""
+    parser.add_argument(
+        "--mirror-average",
+        nargs="?",
+        choices=["auto", "yes", "no"],
+        const="yes",
+        default="auto",
+        help=f"{what} averaged with the mirror image, as the node's pso_lstm.mirror_average "
+        "(a right turn answered as the mirrored left one; docs/evaluation/direction): yes "
+        "(also the bare flag), no, or auto (default, as the node): for a model that records "
+        "it learnt from simulated runs only",
+    )
+
+
 def add_car_files_arguments(parser: argparse.ArgumentParser) -> None:
     """``--vehicle``, ``--observer-params`` and ``--car``: the car a scored model is
     given, as sideslip-evaluate and sideslip-calibrate take them."""
