@@ -26,6 +26,7 @@ import numpy as np
 from tqdm import tqdm
 
 from sideslip_msgs_py.bag import write_bag
+from sideslip_msgs_py.data_source import SIMULATOR
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim import __version__
 from sideslip_sim.fleet import vehicle_digest
@@ -110,7 +111,7 @@ def run_metadata(
     tire_path = vehicle.tire_path()
     tire = load_tire(str(tire_path))
     return {
-        "generator": f"sideslip_sim {__version__}",
+        "generator": f"{SIMULATOR} {__version__}",  # what data_source.is_simulated reads
         "preset": preset_name,
         "maneuver": maneuver.to_dict(),
         "vehicle": vehicle_record(vehicle),
