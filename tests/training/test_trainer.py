@@ -115,3 +115,74 @@ def test_metric_formulas_in_degrees():
     assert m.n == 4
     perfect = metrics_deg(ref, ref)
     assert perfect.mae == 0 and perfect.r2 == 1.0
+
+
+def test_mirror_terms_mirror_the_raw_inputs_before_normalising(data):
+    from sideslip_msgs_py.mirror import input_signs
+    from sideslip_training.trainer import MirrorTerms
+
+    _train, _val, norm = data
+    terms = MirrorTerms.of(norm, torch.device("cpu"))
+    raw = np.random.default_rng(3).normal(size=(50, len(norm.features))) * 4.0
+    mean, std = np.asarray(norm.mean), np.asarray(norm.std)
+    z = torch.as_tensor((raw - mean) / std, dtype=torch.float32)
+    # As evaluate.predict_run and the node mirror: the raw inputs' signs, then z-scores.
+    want = (raw * input_signs(norm.features) - mean) / std
+    np.testing.assert_allclose((z * terms.scale + terms.shift).numpy(), want, atol=1e-5)
+    # Mirroring twice gives the window back.
+    twice = (z * terms.scale + terms.shift) * terms.scale + terms.shift
+    np.testing.assert_allclose(twice.numpy(), z.numpy(), atol=1e-5)
+
+
+def test_the_mirror_averaged_estimate_answers_the_mirrored_window_with_minus_beta(data):
+    from sideslip_training.trainer import MirrorTerms
+
+    _train, val, norm = data
+    model = train_model(_cfg(seed=5, max_epochs=1), *data).model
+    terms = MirrorTerms.of(norm, torch.device("cpu"))
+    x, _y = val.to_torch(torch.device("cpu")).batch(torch.arange(min(64, len(val.ends))))
+    with torch.inference_mode():
+        here = terms.average(model, x) * norm.beta_std + norm.beta_mean
+        there = terms.average(model, x * terms.scale + terms.shift) * norm.beta_std + norm.beta_mean
+        alone = model(x) * norm.beta_std + norm.beta_mean
+        alone_there = model(x * terms.scale + terms.shift) * norm.beta_std + norm.beta_mean
+    np.testing.assert_allclose(there.numpy(), -here.numpy(), atol=1e-6)
+    # The network alone is not odd (it never saw the mirrored windows as such).
+    assert not np.allclose(alone_there.numpy(), -alone.numpy(), atol=1e-4)
+
+
+def test_a_fine_tuning_scores_its_start_and_its_epochs_as_the_node_will_run_them(data):
+    from sideslip_training.trainer import MirrorTerms, mae_deg
+
+    _train, val, norm = data
+    cpu = torch.device("cpu")
+    start = train_model(_cfg(seed=6, max_epochs=2), *data)
+    state = {k: v.clone() for k, v in start.model.state_dict().items()}
+    val_t, n = val.to_torch(cpu), len(val.ends)
+    terms = MirrorTerms.of(norm, cpu)
+    alone = mae_deg(start.model, val_t, norm, cpu, n)
+    averaged = mae_deg(start.model, val_t, norm, cpu, n, terms)
+    assert averaged != pytest.approx(alone, rel=1e-4)
+    # The start averaged (a model that learnt from simulated runs), the fine-tuned
+    # network alone (it learnt from recordings): each scored as the node runs it.
+    tuned = train_model(
+        _cfg(seed=6, learning_rate=1e-4, max_epochs=2),
+        *data,
+        init_state=state,
+        deployed_mirror=(True, False),
+    )
+    assert tuned.start_val_mae_deg == pytest.approx(averaged, rel=1e-6)
+    if tuned.best_epoch:
+        kept = mae_deg(tuned.model, val_t, norm, cpu, n)
+        assert kept == pytest.approx(tuned.best_val_mae_deg, rel=1e-6)
+        assert kept < averaged
+    both = train_model(
+        _cfg(seed=6, learning_rate=1e-4, max_epochs=1),
+        *data,
+        init_state=state,
+        deployed_mirror=(True, True),
+    )
+    model = both.model if both.best_epoch else None
+    if model is not None:
+        scored = mae_deg(model, val_t, norm, cpu, n, terms)
+        assert scored == pytest.approx(both.history[0].val_mae_deg, rel=1e-6)

@@ -20,6 +20,12 @@ Writes ``OUT/summary.json`` and prints a markdown table.
 ``held_out_curve.py``), scored on their 18 benchmark runs each (``--val-data
 data/held-out``). A held-out car is scored so once; nothing is chosen on it.
 
+``--as-recordings``: the owner's bags as a real car's recordings are: the same samples,
+their run metadata only a generator name that is not the simulator's (no car, manoeuvre
+or road). The fit then learns from recordings (``provenance["recordings"]`` > 0), so the
+node's default runs the fitted network alone while it averages the shipped start with
+its mirror image, as for a user's real car (the handover and the scores compare them so).
+
 ``--own-peak-ay A``: the owner who never drove near the limit. Only the own runs whose
 peak |a_y| stays at or under A m/s² are given to the fit (``OUT/CAR/own`` then links to
 those bags of ``OUT/CAR/own-all``); the new drives are the same.
@@ -53,6 +59,22 @@ OWN_SEED = 4000
 HELD_OUT_OWN_SEED = 7  # held_out_curve.py's default seed
 
 
+EMULATED_RECORDING = "emulated recording (fit_bags_check.py --as-recordings)"
+
+
+def as_recordings(folder: Path) -> None:
+    """Rewrite every bag of ``folder`` (in place) with run metadata that names
+    :data:`EMULATED_RECORDING` as generator and nothing else."""
+    from sideslip_msgs_py.bag import read_bag, write_bag
+    from sideslip_msgs_py.sample import SensorNoiseSigma
+
+    for bag in sorted(b for b in folder.iterdir() if b.is_dir()):
+        contents = read_bag(bag)
+        sigma = SensorNoiseSigma(**contents.run_metadata["noise_sigma"])
+        write_bag(bag, contents.samples, sigma=sigma, force=True,
+                  run_metadata={"generator": EMULATED_RECORDING})  # fmt: skip
+
+
 def pooled(report: Path) -> dict[str, float]:
     summary = json.loads((report / "metrics.json").read_text())
     return {r["estimator"]: r["mae"] for r in summary["pooled"] if r["mae"] is not None}
@@ -67,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fit-args", default="", help="more sideslip-fit options")
     p.add_argument("--held-out", action="store_true", help="the six held-out cars (see above)")
     p.add_argument("--own-peak-ay", type=float, default=None, help="keep gentle own runs only")
+    p.add_argument("--as-recordings", action="store_true", help="own bags as recordings (above)")
     p.add_argument(
         "--start",
         default=default_start("measurable", bags=True),
@@ -90,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
             runs = runs[: len(first_minutes(runs, args.minutes))]
             prepare_output(generated, force=True)
             generate(runs, generated, seed=seed, preset_name="own driving", jobs=1, progress=False)
+            if args.as_recordings:
+                as_recordings(generated)
         if args.own_peak_ay is not None and not own.exists():
             own.mkdir()
             for r in json.loads((generated / "index.json").read_text())["runs"]:

@@ -26,7 +26,7 @@ from .cli_errors import EXIT_BAD_INPUT, CliError
 from .dataset import DatasetError
 from .evaluate import json_ready
 from .export import export_model
-from .final_model import model_metadata, refit, wants_refit
+from .final_model import deployed_mirror, model_metadata, refit, wants_refit
 from .init_model import InitError
 from .run_folder import start_run_folder
 from .search import run_pso
@@ -163,6 +163,7 @@ def _train_one(plan: TrainPlan, quiet: bool) -> TrainResult:
             data.normalizer,
             on_epoch=on_epoch,
             init_state=plan.init_state(),
+            deployed_mirror=deployed_mirror(plan),
         )
     finally:
         bar.close()
@@ -180,11 +181,16 @@ def _validate_and_refit(
     (plan.run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     data = plan.data
     metrics = {**val_metrics(result, data.val, data.normalizer), "best_epoch": result.best_epoch}
+    start_averaged, averaged = deployed_mirror(plan)
+    if plan.init is not None:
+        # How the handover compared them: each as the node's default runs it.
+        metrics["validation_mirror_averaged"] = {"start": start_averaged, "model": averaged}
     if result.best_epoch == 0:
         # Always said: the fine-tuning made the model worse on validation at every epoch.
+        how = " (averaged with its mirror image, as the node runs it)" if start_averaged else ""
         print(
-            f"sideslip-train: warning: no epoch of fine-tuning beat the starting model on "
-            f"validation (MAE {result.start_val_mae_deg:.4f} deg at the start, "
+            f"sideslip-train: warning: no epoch of fine-tuning beat the starting model"
+            f"{how} on validation (MAE {result.start_val_mae_deg:.4f} deg at the start, "
             f"{min(r.val_mae_deg for r in result.history):.4f} at best): kept its weights "
             "(try a lower --learning-rate, or more data)",
             file=sys.stderr,

@@ -10,7 +10,12 @@ from datetime import UTC, datetime
 from typing import Any
 
 from sideslip_msgs_py.artifact import ModelMetadata
-from sideslip_msgs_py.data_source import RECORDINGS_KEY, recordings_in, total_recordings
+from sideslip_msgs_py.data_source import (
+    RECORDINGS_KEY,
+    mirror_average_on,
+    recordings_in,
+    total_recordings,
+)
 from sideslip_msgs_py.fleet_envelope import FleetEnvelope
 
 from . import __version__
@@ -54,6 +59,30 @@ def refit(
     return result, refit_history
 
 
+def recordings_learnt(plan: TrainPlan, *, kept_start: bool = False) -> int | None:
+    """The recordings the exported model learnt from (``provenance["recordings"]``): the
+    training data's and the start's; the start's alone when its weights were kept (the
+    file is then the start model, and the node runs it as it ran the start)."""
+    init = plan.init
+    start = [recordings_in(init.meta.provenance)] if init is not None else []
+    if kept_start:
+        return total_recordings(start)
+    return total_recordings([plan.data.recordings, *start])
+
+
+def deployed_mirror(plan: TrainPlan) -> tuple[bool, bool]:
+    """Whether the node's default (``pso_lstm.mirror_average: auto``) averages the start
+    and the fine-tuned network with their mirror images; (False, False) when not
+    fine-tuning (a training from scratch is selected on its network alone)."""
+    if plan.init is None:
+        return False, False
+    after = recordings_learnt(plan)
+    return (
+        mirror_average_on("auto", plan.init.meta.provenance),
+        mirror_average_on("auto", {} if after is None else {RECORDINGS_KEY: after}),
+    )
+
+
 def model_metadata(
     plan: TrainPlan,
     result: TrainResult,
@@ -71,9 +100,7 @@ def model_metadata(
     training data, metrics, PSO record, provenance with ``wall_s`` [s] so far)."""
     normalizer, init = plan.data.normalizer, plan.init
     spec, vehicle = plan.spec, plan.vehicle
-    recordings = total_recordings(
-        [plan.data.recordings, *([recordings_in(init.meta.provenance)] if init else [])]
-    )
+    recordings = recordings_learnt(plan, kept_start=bool(metrics.get("kept_start_weights")))
     envelope = None
     if spec.needs_observer:
         from .observer import training_envelope

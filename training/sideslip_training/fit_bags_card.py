@@ -54,9 +54,12 @@ def model_card(
         if found is not None
         else ""
     )
+    averaged = (train_metrics.get("validation_mirror_averaged") or {}).get("start")
     kept = (
-        "\n\n**No epoch of fine-tuning beat the shipped model on validation: this file "
-        "holds the shipped weights.**"
+        "\n\n**No epoch of fine-tuning beat the shipped model on validation"
+        + (" (scored as the node runs it, averaged with its mirror image)" if averaged else "")
+        + ": this file holds the shipped weights, and the node runs it as it ran the "
+        "shipped model.**"
         if train_metrics.get("kept_start_weights")
         else ""
     )

@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 
+import numpy as np
 import torch
 from torch import nn
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
@@ -110,15 +111,51 @@ def pick_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def mae_deg(model: nn.Module, data, normalizer: Normalizer, device: torch.device, n: int) -> float:
-    """Validation MAE of β in degrees over all ``n`` windows of ``data``."""
+@dataclass(frozen=True)
+class MirrorTerms:
+    """The left-right mirror of a normalised window, ``x * scale + shift``, and the
+    network's output averaged with its mirror image's, ``(y - y_mirror) / 2 - offset``:
+    what the node's ``pso_lstm.mirror_average`` publishes, in normalised units
+    (:func:`sideslip_training.evaluate.predict_run` does the same on raw inputs)."""
+
+    scale: torch.Tensor  # (F,) −1 for an input the mirror negates, +1 otherwise
+    shift: torch.Tensor  # (F,) (scale·mean − mean) / std of each input
+    offset: float  # beta_mean / beta_std: the mirror negates β, not its normalisation
+
+    @classmethod
+    def of(cls, normalizer: Normalizer, device: torch.device) -> MirrorTerms:
+        from sideslip_msgs_py.mirror import input_signs
+
+        signs = input_signs(normalizer.features)
+        mean, std = np.asarray(normalizer.mean), np.asarray(normalizer.std)
+        return cls(
+            scale=torch.as_tensor(signs, dtype=torch.float32, device=device),
+            shift=torch.as_tensor((signs * mean - mean) / std, dtype=torch.float32, device=device),
+            offset=float(normalizer.beta_mean / normalizer.beta_std),
+        )
+
+    def average(self, model: nn.Module, x: torch.Tensor) -> torch.Tensor:
+        return 0.5 * (model(x) - model(x * self.scale + self.shift)) - self.offset
+
+
+def mae_deg(
+    model: nn.Module,
+    data,
+    normalizer: Normalizer,
+    device: torch.device,
+    n: int,
+    mirror: MirrorTerms | None = None,
+) -> float:
+    """Validation MAE of β in degrees over all ``n`` windows of ``data``; of the
+    network averaged with its mirror image when ``mirror`` is given."""
     model.eval()
     total = 0.0
     with torch.inference_mode():
         for start in range(0, n, VAL_BATCH):
             idx = torch.arange(start, min(start + VAL_BATCH, n), device=device)
             x, y = data.batch(idx)
-            total += float((model(x) - y).abs().sum())
+            out = model(x) if mirror is None else mirror.average(model, x)
+            total += float((out - y).abs().sum())
     return math.degrees(total / max(n, 1) * normalizer.beta_std)
 
 
@@ -131,6 +168,7 @@ def train_model(
     on_epoch: Callable[[EpochRecord], None] | None = None,
     init_state: Mapping[str, torch.Tensor] | None = None,
     keep_last: bool = False,
+    deployed_mirror: tuple[bool, bool] = (False, False),
 ) -> TrainResult:
     """Train a :class:`SideslipNet` on ``train``, stop early on ``val`` MAE; from the
     weights ``init_state`` (fine-tuning) when given, else from a seeded initialisation;
@@ -139,7 +177,10 @@ def train_model(
     starting weights (``best_epoch`` 0) when no epoch beats them: it never returns a
     model worse on validation than the one it started from.
     ``keep_last``: run all ``max_epochs`` and keep the last epoch's weights (a refit
-    whose epoch count was chosen before, when ``val`` is part of ``train``)."""
+    whose epoch count was chosen before, when ``val`` is part of ``train``).
+    ``deployed_mirror``: whether the node will average (the start, the trained network)
+    with its mirror image (``pso_lstm.mirror_average``); each is scored on ``val`` as it
+    will run, so a fine-tuning is kept only when it beats the start the user has."""
     device = pick_device(cfg.device)
     torch.manual_seed(cfg.seed)
     model = SideslipNet(
@@ -168,8 +209,10 @@ def train_model(
 
     result = TrainResult(model=model, best_epoch=0, best_val_mae_deg=math.inf, device=str(device))
     best_state = copy.deepcopy(net.state_dict())
+    mirror = MirrorTerms.of(normalizer, device) if any(deployed_mirror) else None
+    start_mirror, epoch_mirror = (mirror if on else None for on in deployed_mirror)
     if init_state is not None and not keep_last:
-        result.start_val_mae_deg = mae_deg(scored, val_t, normalizer, device, n_val)
+        result.start_val_mae_deg = mae_deg(scored, val_t, normalizer, device, n_val, start_mirror)
         if math.isfinite(result.start_val_mae_deg):
             result.best_val_mae_deg = result.start_val_mae_deg
     since_best = 0
@@ -190,7 +233,7 @@ def train_model(
             loss_sum += float(loss.detach())
             batches += 1
         train_seconds = time.perf_counter() - t0
-        val_mae = mae_deg(scored, val_t, normalizer, device, n_val)
+        val_mae = mae_deg(scored, val_t, normalizer, device, n_val, epoch_mirror)
         record = EpochRecord(
             epoch,
             loss_sum / batches,
