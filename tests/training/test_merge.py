@@ -134,6 +134,22 @@ def test_the_cli_merges_trained_models_scores_and_calibrates_them(
     run = load_runs([str(sim_bag_dir)], step_s=merged_meta.dt_s)[0][0]
     each = [predict_run(*load_model(m), run) for m in models]
     np.testing.assert_allclose(predict_run(net, merged_meta, run), np.mean(each, axis=0), atol=1e-7)
+    # Scored and σ fitted on the estimate the node's default publishes: averaged with
+    # its mirror image (simulated members); --mirror-average no scores the network alone.
+    from sideslip_training.calibrate import Errors
+
+    runs = load_runs([str(sim_bag_dir)], step_s=merged_meta.dt_s)[0]
+    figures = merged_meta.metrics["interval_calibration"]
+    assert figures["mirror_averaged"] == 1.0
+    averaged = Errors.of_runs(runs, net, merged_meta, mirror_average=True)
+    mae = float(np.degrees(np.mean(np.abs(averaged.err))))
+    assert merged_meta.metrics["val_mae_deg"] == pytest.approx(mae, rel=1e-9)
+    alone = tmp_path / "alone.safetensors"
+    cmd = [*models, "--data", str(sim_bag_dir), "--out", str(alone), "--mirror-average", "no"]
+    assert main(cmd) == 0
+    alone_meta = read_artifact(alone)[1]
+    assert alone_meta.metrics["interval_calibration"]["mirror_averaged"] == 0.0
+    assert alone_meta.metrics["val_mae_deg"] != pytest.approx(mae, rel=1e-6)
     # Refusals: an existing --out without --force; a model that is not there.
     assert main([*models, "--data", str(sim_bag_dir), "--out", str(merged)]) == 2
     assert "--force" in capsys.readouterr().err

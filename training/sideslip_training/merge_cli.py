@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from sideslip_msgs_py.artifact import ArtifactError
-from sideslip_msgs_py.data_source import RECORDINGS_KEY
+from sideslip_msgs_py.data_source import RECORDINGS_KEY, mirror_average_on
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError
 from sideslip_msgs_py.vehicle_description import VehicleDescription, VehicleDescriptionError
 
@@ -26,7 +26,7 @@ from .cli_errors import EXIT_BAD_INPUT
 from .dataset import DatasetError, load_runs
 from .export import export_model, load_model
 from .init_model import InitError, resolve
-from .inputs import add_car_files_arguments
+from .inputs import add_car_files_arguments, add_mirror_average_argument
 from .merge import MergeError, merge
 
 
@@ -49,6 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="σ: which bags fit and which scale")
     p.add_argument("--topic-map", type=Path, metavar="FILE", help="see sideslip-train")
     add_car_files_arguments(p)
+    add_mirror_average_argument(p, "score the members and calibrate the merged model's σ on each")
     p.add_argument("--force", action="store_true", help="replace --out")
     p.epilog = (
         "For models that read the UKF the σ is calibrated with the runs' car files: true "
@@ -92,12 +93,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         scores = {}
         for name, (m_net, m_meta) in zip(args.models, members, strict=True):
-            scores[name] = _mae_rmse_me(Errors.of_runs(runs, m_net, m_meta, **car))
+            mirror = mirror_average_on(args.mirror_average, m_meta.provenance)
+            errors = Errors.of_runs(runs, m_net, m_meta, **car, mirror_average=mirror)
+            scores[name] = _mae_rmse_me(errors)
+        # Scored and σ fitted on the estimate the node publishes with the same setting
+        # (the merged file records its members' recordings: auto goes by their sum).
+        mirror = mirror_average_on(args.mirror_average, meta.provenance)
+        car = {**car, "mirror_average": mirror}
         errors = Errors.of_runs(runs, net, meta, **car)
         mae, rmse, me = _mae_rmse_me(errors)
         unc, figures = calibrate(
             runs, net, meta, coverage=args.coverage, seed=args.seed, car=car, errors=errors
         )
+        figures = {**figures, "mirror_averaged": float(mirror)}
     except (
         DatasetError,
         ArtifactError,
