@@ -187,7 +187,7 @@ def _validate_and_refit(
         metrics["validation_mirror_averaged"] = {"start": start_averaged, "model": averaged}
     if result.best_epoch == 0:
         # Always said: the fine-tuning made the model worse on validation at every epoch.
-        how = " (averaged with its mirror image, as the node runs it)" if start_averaged else ""
+        how = " (alone, nor averaged with its mirror image)" if start_averaged else ""
         print(
             f"sideslip-train: warning: no epoch of fine-tuning beat the starting model"
             f"{how} on validation (MAE {result.start_val_mae_deg:.4f} deg at the start, "

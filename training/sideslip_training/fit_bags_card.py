@@ -57,7 +57,7 @@ def model_card(
     averaged = (train_metrics.get("validation_mirror_averaged") or {}).get("start")
     kept = (
         "\n\n**No epoch of fine-tuning beat the shipped model on validation"
-        + (" (scored as the node runs it, averaged with its mirror image)" if averaged else "")
+        + (" (neither run alone nor averaged with its mirror image)" if averaged else "")
         + ": this file holds the shipped weights, and the node runs it as it ran the "
         "shipped model.**"
         if train_metrics.get("kept_start_weights")

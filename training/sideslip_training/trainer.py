@@ -83,13 +83,18 @@ class TrainResult:
     device: str = "cpu"
     stopped_early: bool = False
     start_val_mae_deg: float | None = None
-    """Validation MAE of the starting weights when fine-tuning (None from scratch)."""
+    """Validation MAE of the starting weights when fine-tuning (None from scratch): the
+    bar an epoch must beat, the lower of ``start_val_mae_forms``."""
+    start_val_mae_forms: dict[str, float] = field(default_factory=dict)
+    """The start's validation MAE per way the node may run it: ``alone``, and
+    ``averaged`` (with its mirror image) when that is the start's default."""
 
     def summary(self) -> dict[str, object]:
         return {
             "best_epoch": self.best_epoch,
             "best_val_mae_deg": self.best_val_mae_deg,
             "start_val_mae_deg": self.start_val_mae_deg,
+            "start_val_mae_forms": self.start_val_mae_forms,
             "epochs_run": len(self.history),
             "stopped_early": self.stopped_early,
             "seconds": self.seconds,
@@ -178,9 +183,12 @@ def train_model(
     model worse on validation than the one it started from.
     ``keep_last``: run all ``max_epochs`` and keep the last epoch's weights (a refit
     whose epoch count was chosen before, when ``val`` is part of ``train``).
-    ``deployed_mirror``: whether the node will average (the start, the trained network)
-    with its mirror image (``pso_lstm.mirror_average``); each is scored on ``val`` as it
-    will run, so a fine-tuning is kept only when it beats the start the user has."""
+    ``deployed_mirror``: whether the node's default averages (the start, the trained
+    network) with its mirror image (``pso_lstm.mirror_average``). Every epoch is scored
+    on ``val`` as it will run; the start alone, and averaged too when that is its
+    default, and an epoch is kept only when it beats the start both ways: the start is
+    the validated model, and a validation stretch driven mostly one way round favours a
+    network alone over an average (docs/evaluation/fit-bags, "The handover")."""
     device = pick_device(cfg.device)
     torch.manual_seed(cfg.seed)
     model = SideslipNet(
@@ -210,9 +218,14 @@ def train_model(
     result = TrainResult(model=model, best_epoch=0, best_val_mae_deg=math.inf, device=str(device))
     best_state = copy.deepcopy(net.state_dict())
     mirror = MirrorTerms.of(normalizer, device) if any(deployed_mirror) else None
-    start_mirror, epoch_mirror = (mirror if on else None for on in deployed_mirror)
+    epoch_mirror = mirror if deployed_mirror[1] else None
     if init_state is not None and not keep_last:
-        result.start_val_mae_deg = mae_deg(scored, val_t, normalizer, device, n_val, start_mirror)
+        forms = {"alone": None, **({"averaged": mirror} if deployed_mirror[0] else {})}
+        result.start_val_mae_forms = {
+            form: mae_deg(scored, val_t, normalizer, device, n_val, terms)
+            for form, terms in forms.items()
+        }
+        result.start_val_mae_deg = min(result.start_val_mae_forms.values())
         if math.isfinite(result.start_val_mae_deg):
             result.best_val_mae_deg = result.start_val_mae_deg
     since_best = 0
