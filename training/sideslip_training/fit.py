@@ -151,9 +151,10 @@ def _parser() -> argparse.ArgumentParser:
         choices=list(FIT_PROFILES),
         default="quick",
         help="quick: 12 cars around the description, at most 30 epochs (with --bags: "
-        "every 10th window, no mirrored runs; 3-5 min for 7.5 min of recordings on 2 "
-        "cores); thorough: 40 cars and the paper's training settings (with --bags: every "
-        "window, runs mirrored; 33 min for the same recordings, 21 %% less error on "
+        "every 10th window, no mirrored runs; 13-30 min for 7.5 min of recordings on 2 "
+        "cores from the shipped start, beside another job); thorough: 40 cars and the "
+        "paper's training settings (with --bags: every window, runs mirrored; 33 min for "
+        "the same recordings from an earlier start, 21 %% less error on "
         "their test part on the one car measured, docs/evaluation/fit-bags)",
     )
     p.add_argument(

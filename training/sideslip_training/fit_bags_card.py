@@ -248,7 +248,8 @@ def _sigma(train_metrics: dict[str, Any], stored: dict[str, Any] | None) -> str:
 
 # Measured on the simulated held-out cars (docs/evaluation/fit-bags, 2026-12-03; the
 # ensemble start: docs/evaluation/held-out-curve and docs/models/fleet_ukf_ensemble/
-# finetune-lr-validation.json, 2026-12-05): the
+# finetune-lr-validation.json, 2026-12-05; run alone against the averaged start:
+# docs/evaluation/fit-bags/handover-validation.json, 2026-12-06): the
 # own-drive test part favours a fit that other drives of the same car do not.
 OWN_DRIVES_CAUTION = (
     "On six simulated held-out cars, plain fits from the shipped start beat it on their own "
@@ -257,7 +258,10 @@ OWN_DRIVES_CAUTION = (
     "start (`--interpolate 0.5`) they beat it there by 6 % (0.0265°, worse on 1 of 6); from "
     "`fleet_ukf_ensemble` with 5 minutes of driving (a quarter of the way) by 3.5 %, on all 6, "
     "but on eight validation cars such fits beat the start by only 3 % and were 27 % worse "
-    "on one: before deploying, compare both on a recording the fit never saw. "
+    "on one. Run alone, as the node runs a fit to recordings, fits on four validation cars "
+    "were level with the shipped model averaged with its mirror image, as the node runs "
+    "it (0.0289° each, on other drives both ways round; worse on 2 of 4): before "
+    "deploying, compare both on a recording the fit never saw, driven both ways. "
 )
 
 
