@@ -258,9 +258,9 @@ OWN_DRIVES_CAUTION = (
     "start (`--interpolate 0.5`) they beat it there by 6 % (0.0265°, worse on 1 of 6); from "
     "`fleet_ukf_ensemble` with 5 minutes of driving (a quarter of the way) by 3.5 %, on all 6, "
     "but on eight validation cars such fits beat the start by only 3 % and were 27 % worse "
-    "on one. Run alone, as the node runs a fit to recordings, fits on four validation cars "
+    "on one. Run alone, as the node runs a fit to recordings, fits on six validation cars "
     "were level with the shipped model averaged with its mirror image, as the node runs "
-    "it (0.0289° each, on other drives both ways round; worse on 2 of 4): before "
+    "it (0.0292° against 0.0293°, on other drives both ways round; worse on 2 of 6): before "
     "deploying, compare both on a recording the fit never saw, driven both ways. "
 )
 
