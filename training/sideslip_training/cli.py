@@ -183,7 +183,8 @@ def _validate_and_refit(
     metrics = {**val_metrics(result, data.val, data.normalizer), "best_epoch": result.best_epoch}
     start_averaged, averaged = deployed_mirror(plan)
     if plan.init is not None:
-        # How the handover compared them: each as the node's default runs it.
+        # How the handover scored them: the epochs as the file will run, the start
+        # alone and, when that is its default, averaged (start_val_mae_forms).
         metrics["validation_mirror_averaged"] = {"start": start_averaged, "model": averaged}
     if result.best_epoch == 0:
         # Always said: the fine-tuning made the model worse on validation at every epoch.
