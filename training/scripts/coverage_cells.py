@@ -9,6 +9,9 @@ markdown table and writes ``--out`` (JSON).
     python training/scripts/coverage_cells.py \\
         --reports data/described-held-out-ensemble/heldout_*/report-true \\
         --out docs/evaluation/intervals/held-out-ukf-ensemble.json
+
+A report that scored several networks needs ``--model FILE``: the row of that model
+file (the report's ``model_estimators`` map).
 """
 
 from __future__ import annotations
@@ -26,8 +29,11 @@ from fit_bags_cells import cells
 BAND = (0.93, 0.97)
 
 
-def network_row(by_est: dict[str, dict[str, float]]) -> dict[str, float]:
-    """The one row with a coverage (the network; the baselines publish no σ)."""
+def network_row(by_est: dict[str, dict[str, float]], label: str | None = None) -> dict[str, float]:
+    """The row ``label``, or the one row with a coverage (the network; the baselines
+    publish no σ)."""
+    if label is not None:
+        return by_est[label]
     rows = [v for v in by_est.values() if np.isfinite(v["coverage_95"])]
     if len(rows) != 1:
         raise SystemExit(f"expected one estimator with an interval, found {len(rows)}")
@@ -39,11 +45,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reports", nargs="+", type=Path, required=True,
                    help="report folders, one per car, named CAR/REPORT")  # fmt: skip
     p.add_argument("--out", type=Path)
+    p.add_argument("--model", help="the model file whose row to read (as given to the report)")
     args = p.parse_args(argv)
     table: dict[str, dict[str, dict[str, float]]] = {}
     for report in sorted(args.reports):
         car = report.parent.name
-        table[car] = {mu: network_row(by_est) for mu, by_est in cells(report).items()}
+        label = None
+        if args.model is not None:
+            label = json.loads((report / "metrics.json").read_text())["model_estimators"][
+                args.model
+            ]
+        table[car] = {mu: network_row(by_est, label) for mu, by_est in cells(report).items()}
     mus = sorted({mu for row in table.values() for mu in row})
     print("| car | " + " | ".join(f"μ = {mu}" for mu in mus) + " |")
     print("|---|" + "---|" * len(mus))
