@@ -72,7 +72,10 @@ def main(argv: list[str] | None = None) -> int:
             "scratch": work / f"scratch_{args.minutes}min.safetensors",
             "zero_shot": resolve(args.start),
         }
-        models = {k: load_model(f) for k, f in files.items() if f.exists()}
+        missing = [str(f) for f in files.values() if not f.exists()]
+        if missing:  # a --no-scratch folder has no scratch model to compare
+            raise SystemExit(f"{work.name}: missing {', '.join(missing)}")
+        models = {k: load_model(f) for k, f in files.items()}
         meta = models["finetuned"][1]
         drives = sorted(args.held_out.glob(f"{car}_mu*"))
         if len(drives) != 18:
@@ -104,11 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     print("| work | " + " | ".join(heads) + " |")
     print("|---|" + "---|" * len(heads))
     for name, r in summary.items():
-        cells = [f"{r[k][f]:.4f}" if k in r else "—" for f in FORMS for k in KINDS]
+        cells = [f"{r[k][f]:.4f}" for f in FORMS for k in KINDS]
         print(f"| {name} | " + " | ".join(cells) + " |")
     for f in FORMS:
-        ft, sc = (float(np.mean([r[k][f] for r in summary.values()])) for k in KINDS[:2])
-        zs = float(np.mean([r["zero_shot"][f] for r in summary.values()]))
+        ft, sc, zs = (float(np.mean([r[k][f] for r in summary.values()])) for k in KINDS)
         print(f"{f}: fine-tuned {ft:.4f}, scratch {sc:.4f}, zero-shot {zs:.4f}; "
               f"vs scratch {1 - ft / sc:+.1%}, vs zero-shot {1 - ft / zs:+.1%}")  # fmt: skip
     return 0
