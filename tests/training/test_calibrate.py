@@ -290,13 +290,36 @@ def test_described_car_files_get_a_sigma_of_their_own_beside_the_models(
         np.testing.assert_allclose(trace.sigma_rad, want[meta.window_steps - 1 :], rtol=1e-12)
 
 
-def test_a_mix_of_described_and_other_car_files_is_refused(sim_bag_dir: Path, tmp_path, capsys):
-    """``--car mixed`` gives half the bags their described car: one σ cannot be both."""
+def test_a_mix_of_car_files_is_refused_where_the_model_keeps_a_sigma_for_each(
+    sim_bag_dir: Path, tmp_path, capsys
+):
+    """``--car mixed`` gives half the bags their described car: one σ cannot be both of
+    the ensemble's two."""
     from sideslip_training.observer import described_half
 
     halves = {described_half(p.name) for p in sim_bag_dir.iterdir() if p.is_dir()}
     assert halves == {True, False}  # the fixture's bags fall on both sides
-    code = main(["--model", "fleet_ukf_measurable", "--data", str(sim_bag_dir), "--car",
-                 "mixed", "--out", str(tmp_path / "x.safetensors")])  # fmt: skip
+    out = tmp_path / "x.safetensors"
+    code = main(["--model", "fleet_ukf_ensemble", "--data", str(sim_bag_dir), "--car",
+                 "mixed", "--out", str(out)])  # fmt: skip
     assert code == 2
     assert "mix described cars" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_mix_of_car_files_calibrates_the_one_sigma_of_a_model_without_a_described_one(
+    sim_bag_dir: Path, tmp_path, capsys
+):
+    """A model with one σ for every file (as ``fleet_ukf_described``, fitted at training
+    on a mix) is calibrated on a mix the same way, and keeps no σ for described files."""
+    out = tmp_path / "mixed.safetensors"
+    code = main(["--model", "fleet_ukf_measurable", "--data", str(sim_bag_dir), "--car",
+                 "mixed", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    meta = read_artifact(out)[1]
+    unc = Uncertainty.from_dict(meta.uncertainty)
+    assert unc.described is None
+    assert "interval_calibration" in meta.metrics
+    assert "interval_calibration_described" not in meta.metrics
+    assert unc.scale > 0
+    assert meta.provenance["calibrated_on"] == [str(sim_bag_dir)]

@@ -252,16 +252,22 @@ def described_kinds(runs: Sequence[Run], meta, car: dict[str, Any]) -> set[bool]
 def for_described_files(runs: Sequence[Run], meta, car: dict[str, Any]) -> bool:  # type: ignore[no-untyped-def]
     """Whether the calibration is the σ for car files made from a description: every
     run's UKF file is one (``--car described``, or ``--car given`` with such a file).
-    Raises DatasetError for a mix, or where the model has no σ of its own to keep."""
+
+    A mix of both kinds (``--car mixed``) calibrates the model's own σ, which the node
+    publishes with every file, as a training with ``--car mixed`` fits it
+    (``fleet_ukf_described``). Raises DatasetError for a mix where the model keeps a σ
+    for described files beside its own (one σ cannot be both), or for described files
+    where the model has no σ of its own to keep."""
     kinds = described_kinds(runs, meta, car)
+    unc = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
     if kinds != {True}:
-        if len(kinds) > 1:
+        if len(kinds) > 1 and unc is not None and unc.described is not None:
             raise DatasetError(
-                "the runs' UKF files mix described cars (axles_from: description) and others: "
-                "calibrate each kind on its own (--car described, --car recorded)"
+                "the runs' UKF files mix described cars (axles_from: description) and others, "
+                "and this model keeps a σ for each kind: calibrate each on its own "
+                "(--car described, --car recorded)"
             )
         return False
-    unc = None if meta.uncertainty is None else Uncertainty.from_dict(meta.uncertainty)
     if unc is None or unc.fit_range is not None:
         raise DatasetError(
             "a σ for described car files is kept beside the model's own σ: "
@@ -303,7 +309,9 @@ def _parser() -> argparse.ArgumentParser:
     p.epilog = (
         "For a model that reads the UKF, runs whose car files were made from a description "
         "(--car described, or a file with axles_from: description) calibrate the σ the "
-        "node publishes with such files; the model's σ for other files is kept."
+        "node publishes with such files; the model's σ for other files is kept. A mix of "
+        "both kinds (--car mixed) calibrates a model's one σ, where it keeps no σ for "
+        "described files."
     )
     return p
 
