@@ -29,6 +29,7 @@ import yaml
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.vehicle import VehicleParams
 from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.identify_axles import main as identify_main
@@ -51,7 +52,7 @@ def arm(text: str) -> tuple[str, list[str]]:
     return name, options.split()
 
 
-def car_files(car, work: Path, minutes: float, seed: int) -> tuple[Path, Path, Path]:
+def car_files(car: VehicleParams, work: Path, minutes: float, seed: int) -> tuple[Path, Path, Path]:
     """The car's own driving, description and identified axles (made once, then reused)."""
     own = work / f"own-{minutes:g}min"
     if not (own / "index.json").exists():
