@@ -42,7 +42,6 @@ from pathlib import Path
 import yaml
 
 from sideslip_sim.fleet import sample_fleet
-from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.fit import default_start
@@ -50,7 +49,7 @@ from sideslip_training.fit import main as fit_main
 from sideslip_training.init_model import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
-from held_out_curve import first_minutes, made_from, own_runs
+from held_out_curve import made_from, write_own_minutes
 from held_out_fit import description
 
 VAL_SEED = 2
@@ -107,14 +106,11 @@ def main(argv: list[str] | None = None) -> int:
         work = args.out / car.name
         own = work / "own"
         generated = own if args.own_peak_ay is None else work / "own-all"
-        if not (generated / "index.json").exists():
-            seed = HELD_OUT_OWN_SEED if args.held_out else OWN_SEED + k
-            runs = own_runs(car, args.minutes, seed)
-            runs = runs[: len(first_minutes(runs, args.minutes))]
-            prepare_output(generated, force=True)
-            generate(runs, generated, seed=seed, preset_name="own driving", jobs=1, progress=False)
-            if args.as_recordings:
-                as_recordings(generated)
+        seed = HELD_OUT_OWN_SEED if args.held_out else OWN_SEED + k
+        if write_own_minutes(car, args.minutes, seed, generated, "own driving") and (
+            args.as_recordings
+        ):
+            as_recordings(generated)
         if args.own_peak_ay is not None and not own.exists():
             own.mkdir()
             for r in json.loads((generated / "index.json").read_text())["runs"]:

@@ -87,6 +87,21 @@ def own_runs(car: VehicleParams, minutes: float, seed: int) -> list[VehicleRun]:
     ]
 
 
+def write_own_minutes(
+    car: VehicleParams, minutes: float, seed: int, folder: Path, preset: str, jobs: int = 1
+) -> bool:
+    """Generate into ``folder`` the first ``minutes`` of ``car``'s own runs
+    (:func:`own_runs`, with ``generate``'s defaults otherwise), unless ``folder``
+    already holds a finished set (its ``index.json``). True when it generated them."""
+    if (folder / "index.json").exists():
+        return False
+    runs = own_runs(car, minutes, seed)
+    runs = runs[: len(first_minutes(runs, minutes))]
+    prepare_output(folder, force=True)
+    generate(runs, folder, seed=seed, preset_name=preset, jobs=jobs, progress=False)
+    return True
+
+
 def made_from(model: Path) -> str:
     """The file name of the model ``model`` was fine-tuned from ("" if from scratch)."""
     from sideslip_msgs_py.artifact import read_artifact

@@ -279,19 +279,15 @@ def main(argv: list[str] | None = None) -> int:
 def identified(args: argparse.Namespace, name: str, desc: Path) -> Path:
     """The ``ukf`` file ``sideslip-identify-axles`` makes from the description ``desc``
     and ``args.identify`` minutes of the car's own runs (generated once, then reused)."""
-    from held_out_curve import car_runs, first_minutes
+    from held_out_curve import write_own_minutes
 
     work = args.out / name
     out = work / f"identified-{args.identify:g}min.ukf.yaml"
     if out.exists():
         return out
     own = work / f"own-{args.identify:g}min"
-    if not (own / "index.json").exists():
-        runs = car_runs(name, args.identify, OWN_SEED)
-        runs = runs[: len(first_minutes(runs, args.identify))]
-        prepare_output(own, force=True)
-        generate(runs, own, seed=OWN_SEED, preset_name="held-out-own (yardstick only)",
-                 jobs=2, progress=False)  # fmt: skip
+    write_own_minutes(held_out_vehicles()[name], args.identify, OWN_SEED, own,
+                      "held-out-own (yardstick only)", jobs=2)  # fmt: skip
     code = identify_main(["--vehicle", str(desc), "--data", str(own), "--out", str(out)])
     if code:
         raise _Failed(code)

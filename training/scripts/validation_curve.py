@@ -27,7 +27,6 @@ from pathlib import Path
 import yaml
 
 from sideslip_sim.fleet import sample_fleet
-from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
 from sideslip_sim.vehicle import VehicleParams
 from sideslip_training.cli import train_main
@@ -37,7 +36,7 @@ from sideslip_training.init_model import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import OWN_SEED, VAL_CARS, VAL_SEED
-from held_out_curve import first_minutes, model_mae, own_runs
+from held_out_curve import model_mae, write_own_minutes
 from held_out_fit import description
 
 BASE_RECIPE = ("--profile", "quick", "--device", "cpu", "--quiet", "--stride", "10",
@@ -55,11 +54,7 @@ def arm(text: str) -> tuple[str, list[str]]:
 def car_files(car: VehicleParams, work: Path, minutes: float, seed: int) -> tuple[Path, Path, Path]:
     """The car's own driving, description and identified axles (made once, then reused)."""
     own = work / f"own-{minutes:g}min"
-    if not (own / "index.json").exists():
-        runs = own_runs(car, minutes, seed)
-        runs = runs[: len(first_minutes(runs, minutes))]
-        prepare_output(own, force=True)
-        generate(runs, own, seed=seed, preset_name="own driving", jobs=1, progress=False)
+    write_own_minutes(car, minutes, seed, own, "own driving")
     desc = work / "description.yaml"
     desc.write_text(yaml.safe_dump(description(car), sort_keys=False))
     ident = work / f"identified-{minutes:g}min.ukf.yaml"
