@@ -27,7 +27,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "sideslip-generate = sideslip_sim.generate:main",
+            "sideslip-generate = sideslip_sim.generate_cli:main",
             # `ros2 run sideslip_sim sim_node` and the pip console script are one program.
             "sim_node = sideslip_sim.node:main",
             "sideslip-sim = sideslip_sim.node:main",

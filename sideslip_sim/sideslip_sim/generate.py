@@ -1,19 +1,16 @@
 """Labelled bag generation: manoeuvres → simulation → sensor noise → rosbag2 MCAP bags.
 
 `generate_run` is the pure-ish unit of work (one manoeuvre → one bag); `generate` runs
-a preset over a process pool; `main` is the `sideslip-generate` CLI.
+a preset over a process pool; the `sideslip-generate` CLI is :mod:`.generate_cli`.
 """
 
 from __future__ import annotations
 
-import argparse
 import concurrent.futures as futures
 import dataclasses
 import hashlib
 import json
-import math
 import multiprocessing
-import os
 import platform
 import shutil
 import sys
@@ -30,23 +27,16 @@ from sideslip_msgs_py.data_source import SIMULATOR
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_sim import __version__
 from sideslip_sim.fleet import vehicle_digest
-from sideslip_sim.held_out import is_held_out
+from sideslip_sim.imu_mounting import ImuMounting
 from sideslip_sim.maneuvers import Maneuver, ManeuverError
 from sideslip_sim.plausibility import plausibility
 from sideslip_sim.presets import (
-    PRESETS,
-    TRAINING_PRESETS,
-    VEHICLE_PRESETS,
-    PresetError,
     VehicleRun,
-    preset,
-    vehicle_preset,
 )
 from sideslip_sim.sensors import add_noise, exact_samples, noise_profile, run_seed
-from sideslip_sim.simulate import DT_S, SimResult, SimulationError, simulate
-from sideslip_sim.tir_file import TirError
+from sideslip_sim.simulate import DT_S, SimResult, simulate
 from sideslip_sim.tire import load_tire
-from sideslip_sim.vehicle import VehicleFileError, VehicleParams, load_vehicle, vehicle_record
+from sideslip_sim.vehicle import VehicleParams, vehicle_record
 
 INDEX_FILE = "index.json"
 EXIT_BAD_INPUT = 2
@@ -104,6 +94,7 @@ def run_metadata(
     seed: int,
     preset_name: str,
     spin_onset: float | None = None,
+    imu: ImuMounting | None = None,
 ) -> dict[str, object]:
     """Everything needed to regenerate the bag bit for bit, stored inside it, with the
     car's parameter digest and plausibility figures and the run's spin onset (or None):
@@ -122,6 +113,7 @@ def run_metadata(
         "tire_sha256": _file_digest(tire_path),
         "noise_profile": noise,
         "noise_sigma": dataclasses.asdict(sigma),
+        "imu": (imu or ImuMounting()).to_dict(),
         "seed": seed,
         "dt_s": DT_S,
         "integrator": "RK4 (classic 4th order), fixed step",
@@ -137,13 +129,15 @@ def generate_run(
     noise: str,
     seed: int,
     preset_name: str,
+    imu: ImuMounting | None = None,
 ) -> RunSummary:
-    """Simulate one manoeuvre and write its bag to out_dir/<maneuver.name>."""
+    """Simulate one manoeuvre and write its bag to out_dir/<maneuver.name> (``imu``: the
+    IMU's mounting, by default the contract's ideal one)."""
     started = time.perf_counter()
     result = simulate(vehicle, maneuver)
     sim_wall = time.perf_counter() - started
     sigma = noise_profile(noise)
-    exact = exact_samples(result)
+    exact = exact_samples(result, imu=imu)
     samples = add_noise(exact, sigma, run_seed(seed, maneuver.name))
     bag = out_dir / maneuver.name
     onset = spin_onset_s(result)
@@ -151,7 +145,7 @@ def generate_run(
         bag,
         samples,
         sigma=sigma,
-        run_metadata=run_metadata(vehicle, maneuver, noise, sigma, seed, preset_name, onset),
+        run_metadata=run_metadata(vehicle, maneuver, noise, sigma, seed, preset_name, onset, imu),
     )
     speed_kmh = result.u_mps * 3.6
     return RunSummary(
@@ -212,6 +206,7 @@ def generate(
     jobs: int = 1,
     progress: bool = True,
     on_done: Callable[[RunSummary], None] | None = None,
+    imu: ImuMounting | None = None,
 ) -> list[RunSummary]:
     """Generate one bag per run into out_dir (which must be prepared) and an index."""
     noise_profile(noise)  # validate before any work
@@ -222,7 +217,7 @@ def generate(
         raise ManeuverError("no runs to generate")
     _warm_up(runs[0].vehicle)
     summaries: list[RunSummary] = []
-    kwargs = {"noise": noise, "seed": seed, "preset_name": preset_name}
+    kwargs = {"noise": noise, "seed": seed, "preset_name": preset_name, "imu": imu}
     bar = tqdm(total=len(runs), unit="run", desc="generate", disable=not progress, file=sys.stderr)
     if jobs <= 1:
         for r in runs:
@@ -246,6 +241,7 @@ def generate(
         "vehicle": vehicles[0] if len(vehicles) == 1 else vehicles,
         "noise": noise,
         "seed": seed,
+        "imu": (imu or ImuMounting()).to_dict(),
         "runs": [dataclasses.asdict(s) for s in summaries],
     }
     (out_dir / INDEX_FILE).write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
@@ -255,146 +251,11 @@ def generate(
     return summaries
 
 
-def format_summary(summaries: Sequence[RunSummary], limit: int = 40) -> str:
-    """A fixed-width table: one line per run (the first `limit`), then the totals."""
-    head = (
-        f"{'run':<34} {'samples':>7} {'|β|max°':>8} {'|a_y|max':>8} {'|r|max°/s':>9} "
-        f"{'v0 km/h':>7} {'v_end':>6} {'μ':>4}"
-    )
-    lines = [head, "-" * len(head)]
-    for s in summaries[:limit]:
-        lines.append(
-            f"{s.name[:34]:<34} {s.samples:>7} {s.peak_abs_beta_deg:>8.2f} "
-            f"{s.peak_abs_ay_mps2:>8.2f} {s.peak_abs_yaw_rate_degps:>9.1f} "
-            f"{s.speed_start_kmh:>7.1f} {s.speed_end_kmh:>6.1f} {s.mu:>4.2f}"
-        )
-    if len(summaries) > limit:
-        lines.append(f"... {len(summaries) - limit} more runs (see {INDEX_FILE})")
-    total = sum(s.samples for s in summaries)
-    sim_time = total * DT_S
-    lines.append(f"{len(summaries)} runs, {total} samples ({sim_time:.1f} s simulated at 400 Hz)")
-    spun = [s.name for s in summaries if s.spun]
-    if spun:
-        lines.append(
-            f"{len(spun)} run(s) spun (|β| > {SPIN_BETA_DEG:.0f}°), flagged in {INDEX_FILE}: "
-            + ", ".join(spun[:5])
-            + (" ..." if len(spun) > 5 else "")
-        )
-    return "\n".join(lines)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="sideslip-generate",
-        description=(
-            "Simulate a preset of manoeuvres with the 14-DOF vehicle model and write one "
-            "rosbag2 MCAP bag per run (noisy sensor topics + exact ground truth at 400 Hz), "
-            "plus index.json with a summary of every run."
-        ),
-        epilog=(
-            "presets on one car (--vehicle): paper-train (Table 3 grid), paper-test "
-            "(Table 4 scenarios), randomized (seeded draws; see --count). Presets whose runs "
-            "each have their own car: fleet (--count runs, four per car drawn by the seeded "
-            "fleet sampler, μ 0.3-1.0), held-out (the six held-out cars at μ 1.0/0.7/0.4: "
-            "for evaluation only). Training presets refuse a held-out car. Example: "
-            "sideslip-generate --preset paper-test --out data/paper-test --noise paper"
-        ),
-    )
-    parser.add_argument(
-        "--preset", required=True, help=f"one of: {', '.join((*PRESETS, *VEHICLE_PRESETS))}"
-    )
-    parser.add_argument("--out", required=True, type=Path, help="output directory for the bags")
-    parser.add_argument("--noise", default="paper", help="sensor noise profile: paper | none")
-    parser.add_argument("--seed", type=int, default=0, help="base seed (noise, random draws)")
-    parser.add_argument(
-        "--vehicle",
-        default=None,
-        help="shipped vehicle name or path to a vehicle YAML (default paper_sedan); not "
-        "for fleet and held-out, whose runs name their own cars",
-    )
-    parser.add_argument(
-        "--count", type=int, default=100, help="runs of the randomized and fleet presets"
-    )
-    parser.add_argument(
-        "--both-sides",
-        action="store_true",
-        help="fleet: every run turns the side it draws (by default only cornering does and "
-        "the scripted lane changes, sines, sweeps and step steers open to the left, as in "
-        "the data the shipped models were trained on; docs/evaluation/direction)",
-    )
-    parser.add_argument(
-        "--jobs",
-        type=int,
-        default=min(2, os.cpu_count() or 1),
-        help="worker processes (default: up to 2)",
-    )
-    parser.add_argument(
-        "--force",
-        action="store_true",
-        help="replace bags in a non-empty --out (other files are kept)",
-    )
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
-    return parser
-
-
-def _preset_runs(args: argparse.Namespace) -> list[VehicleRun]:
-    """The runs the command line asks for; a held-out car in a training preset is an
-    error (the held-out benchmark must stay unseen)."""
-    if args.both_sides and args.preset != "fleet":
-        raise PresetError(f"--both-sides is for --preset fleet, not {args.preset}")
-    if args.preset in VEHICLE_PRESETS:
-        if args.vehicle is not None:
-            raise PresetError(f"--vehicle does not apply to --preset {args.preset}: its runs "
-                              "name their own cars")  # fmt: skip
-        return vehicle_preset(
-            args.preset, seed=args.seed, count=args.count, both_sides=args.both_sides
-        )
-    maneuvers = preset(args.preset, seed=args.seed, count=args.count)
-    vehicle = load_vehicle(args.vehicle or "paper_sedan")
-    load_tire(str(vehicle.tire_path()))  # a bad tyre file is refused before any work
-    if args.preset in TRAINING_PRESETS and is_held_out(vehicle):
-        raise PresetError(
-            f"--vehicle {args.vehicle} is a held-out car: the training preset "
-            f"{args.preset} must never contain it (use --preset held-out to evaluate)"
-        )
-    return single_vehicle(vehicle, maneuvers)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        noise_profile(args.noise)
-        runs = _preset_runs(args)
-        if args.jobs < 1:
-            raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
-        prepare_output(args.out, force=args.force)
-    except (PresetError, VehicleFileError, TirError, OutputDirError, ValueError, OSError) as exc:
-        print(f"sideslip-generate: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    started = time.perf_counter()
-    try:
-        summaries = generate(
-            runs,
-            args.out,
-            noise=args.noise,
-            seed=args.seed,
-            preset_name=args.preset,
-            jobs=args.jobs,
-            progress=not args.quiet,
-        )
-    except (SimulationError, ManeuverError) as exc:
-        print(f"sideslip-generate: run failed: {exc}", file=sys.stderr)
-        return EXIT_RUN_FAILED
-    wall = time.perf_counter() - started
-    if not args.quiet:
-        print(format_summary(summaries))
-        total = sum(s.samples for s in summaries) * DT_S
-        ratio = total / wall if wall > 0 else math.inf
-        print(
-            f"wrote {len(summaries)} bags to {args.out} in {wall:.1f} s "
-            f"({ratio:.0f}x real time, {args.jobs} job(s))"
-        )
-    return 0
+    """``sideslip-generate`` (:func:`sideslip_sim.generate_cli.main`)."""
+    from sideslip_sim.generate_cli import main as cli_main
+
+    return cli_main(argv)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ import numpy as np
 from sideslip_msgs_py import channels as registry
 from sideslip_msgs_py.sample import TRUTH_CHANNELS, SampleArrays, SensorNoiseSigma
 from sideslip_msgs_py.timing import STEP_NS
+from sideslip_sim.imu_mounting import ImuMounting, mounted_accelerations
 from sideslip_sim.simulate import SimResult
 
 NOISE_PROFILES = ("paper", "none")
@@ -41,19 +42,28 @@ def run_seed(base_seed: int, run_name: str) -> np.random.SeedSequence:
     return np.random.SeedSequence([int(base_seed) & 0xFFFFFFFF, zlib.crc32(run_name.encode())])
 
 
-def exact_samples(result: SimResult, start_stamp_ns: int = 0) -> SampleArrays:
+def exact_samples(
+    result: SimResult, start_stamp_ns: int = 0, imu: ImuMounting | None = None
+) -> SampleArrays:
     """The run's exact signals as contract samples, with ground truth attached.
 
     Stamps are start + k·dt in integer nanoseconds (2.5 ms = 2 500 000 ns, exact).
+    ``imu``: where the IMU sits and its frame (:mod:`sideslip_sim.imu_mounting`); by
+    default the contract's ideal IMU (CG acceleration, horizontal frame).
     """
     dt_ns = round((result.t_s[1] - result.t_s[0]) * 1e9) if len(result) > 1 else STEP_NS
     stamps = start_stamp_ns + np.arange(len(result), dtype=np.int64) * dt_ns
+    ax, ay = result.ax_mps2, result.ay_mps2
+    if imu is not None and not imu.ideal:
+        ax, ay = mounted_accelerations(
+            imu, result.t_s, ax, ay, result.yaw_rate_radps, result.roll_rad, result.pitch_rad
+        )
     return SampleArrays(
         stamp_ns=stamps,
         x_v_mps=result.u_mps,
         y_v_mps=result.v_mps,
-        x_a_mps2=result.ax_mps2,
-        y_a_mps2=result.ay_mps2,
+        x_a_mps2=ax,
+        y_a_mps2=ay,
         yaw_rate_radps=result.yaw_rate_radps,
         stl_m=result.stl_m,
         stl_rate_mps=result.stl_rate_mps,
