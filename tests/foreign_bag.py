@@ -16,6 +16,7 @@ import numpy as np
 from sideslip_msgs_py.bag import open_writer
 
 RACK_PER_WHEEL_DEG = 0.00021  # [m of rack travel per steering-wheel degree]
+GRAVITY = 9.80665  # [m/s²]
 
 TOPIC_MAP = {
     "channels": {
@@ -68,7 +69,25 @@ def make_truth(n: int, rate_hz: float = 100.0, seed: int = 0) -> Truth:
     )
 
 
-def write_foreign_bag(path: Path, truth: Truth) -> Path:
+def quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of roll about x, then pitch about y, then yaw about z (tf2's RPY)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+def write_foreign_bag(
+    path: Path, truth: Truth, tilt: tuple[np.ndarray, np.ndarray] | None = None
+) -> Path:
+    """``tilt``: the body's roll and pitch [rad] per sample; the IMU then reads the
+    accelerations in the body frame with gravity (REP 145) and its orientation carries
+    the tilt and the yaw (without: level accelerations, an identity orientation)."""
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_JAZZY)
@@ -105,13 +124,20 @@ def write_foreign_bag(path: Path, truth: Truth) -> Path:
     }
     for i, stamp in enumerate(truth.stamp_ns.tolist()):
         h = Header(stamp=Time(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="imu_link")
+        f_x, f_y, orientation = float(truth.x_a[i]), float(truth.y_a[i]), (0.0, 0.0, 0.0, 1.0)
+        if tilt is not None:
+            roll, pitch = float(tilt[0][i]), float(tilt[1][i])
+            f_x = f_x * math.cos(pitch) - GRAVITY * math.sin(pitch)
+            f_y = f_y * math.cos(roll) + GRAVITY * math.sin(roll)
+            orientation = quaternion(roll, pitch, float(truth.yaw[i]))
+        qx, qy, qz, qw = orientation
         imu = Imu(
             header=h,
-            orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+            orientation=Quaternion(x=qx, y=qy, z=qz, w=qw),
             orientation_covariance=cov9,
             angular_velocity=Vector3(x=0.0, y=0.0, z=float(truth.r[i])),
             angular_velocity_covariance=cov9,
-            linear_acceleration=Vector3(x=float(truth.x_a[i]), y=float(truth.y_a[i]), z=9.81),
+            linear_acceleration=Vector3(x=f_x, y=f_y, z=9.81),
             linear_acceleration_covariance=cov9,
         )
         yaw = float(truth.yaw[i])

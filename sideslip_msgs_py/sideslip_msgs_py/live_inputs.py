@@ -11,6 +11,7 @@ from . import topics
 from .errors import BagError
 from .features import feature_set
 from .field_path import field_value
+from .imu_frame import level_accelerations, roll_pitch
 from .message_fields import FIELDS_RECORDS, stamp_ns
 from .topic_map import FieldSource, TopicMap, heading_yaw
 
@@ -29,6 +30,8 @@ class LiveMapper:
     (any model input outside the ``measurable`` set) is passed as 0 (the node refuses
     models that read it), a channel that is no model input (the rack's rate) as NaN;
     an unmapped measurable channel (yaw rate, acceleration, ...) makes no sample.
+    With ``imu.frame: body`` the accelerations are levelled with the latest attitude
+    (no sample before the first one), as :func:`~.topic_map_read.read_mapped_bag` does.
     """
 
     def __init__(self, topic_map: TopicMap) -> None:
@@ -36,6 +39,7 @@ class LiveMapper:
         self.clock_topic = topic_map.channels[topic_map.clock].topic
         self._values: dict[str, tuple[int, float]] = {}
         self._yaw: float | None = None
+        self._tilt: tuple[float, float] | None = None
         self._by_topic: dict[str, list[tuple[str, FieldSource]]] = {}
         for name, src in topic_map.channels.items():
             self._by_topic.setdefault(src.topic, []).append((name, src))
@@ -55,6 +59,9 @@ class LiveMapper:
                 self._values[name] = (stamp, value)
             if heading is not None and heading.topic == topic:
                 self._yaw = heading_yaw(field_value(msg, heading.field), heading.kind)
+            attitude = self.map.imu_attitude
+            if attitude is not None and attitude.topic == topic:
+                self._tilt = roll_pitch(field_value(msg, attitude.field))
         except (AttributeError, KeyError, IndexError, TypeError, ValueError) as err:
             raise BagError(f"{topic}: a mapped field is missing or not a number: {err}") from None
         if topic != self.clock_topic:
@@ -69,6 +76,15 @@ class LiveMapper:
             c, s = math.cos(self._yaw), math.sin(self._yaw)
             v["x_v_mps"] = (v["x_v_mps"][0], c * x_v + s * y_v)
             v["y_v_mps"] = (v.get("y_v_mps", (0, 0.0))[0], -s * x_v + c * y_v)
+        if self.map.imu_attitude is not None:
+            if self._tilt is None:
+                return None
+            a_x, a_y = level_accelerations(
+                v.get("x_a_mps2", (0, 0.0))[1], v.get("y_a_mps2", (0, 0.0))[1], *self._tilt
+            )
+            for name, value in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
+                if name in v:
+                    v[name] = (v[name][0], float(value))
         twist, steering = (_record(t, v, None) for t in _PARTNERS)
         return twist, steering, _record(topics.IMU, v, stamp)
 

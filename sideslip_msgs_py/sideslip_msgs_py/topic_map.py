@@ -26,6 +26,9 @@ Units and frames are converted here, once::
       # where on the car the reference measures, from the CG [m] (x forward, y left):
       # its velocity is moved to the CG with the yaw rate, v_cg = v_P − r × p
       position_m: [1.2, 0.0]
+    imu:                       # optional: an accelerometer in the body frame, gravity in it
+      frame: body              # (REP 145's sensor_msgs/Imu); level (default): gravity-free
+      attitude: {topic: /imu/data, field: orientation}   # its roll and pitch take it out
 
 Fields are dotted attribute paths of the message (``twist.twist.linear.x``); an index
 selects an array element by position (``position[0]``) or a ``JointState`` joint by
@@ -43,6 +46,13 @@ reference measured elsewhere (an INS's antenna or an optical sensor on the bumpe
 differs by r·x/v: 1.7° at a yaw rate of 0.3 rad/s, 20 m/s and 2 m ahead of the CG,
 far more than the models' errors; ``reference.position_m`` moves it to the CG with the
 mapped yaw rate.
+
+The models' accelerations are the CG's in the horizontal frame, free of gravity, as the
+simulator gives them. A strapdown IMU reads gravity through the body's roll and pitch:
+in a turn its Y_a is 5–15 % more than a_y, which made every UKF-anchored model about ten
+times worse on the held-out benchmark (docs/evaluation/imu-mounting). ``imu.frame:
+body`` with an ``attitude`` (an orientation quaternion: an AHRS's, an INS's) turns each
+sample back into the level frame (:mod:`.imu_frame`).
 """
 
 from __future__ import annotations
@@ -60,6 +70,7 @@ MAX_LEVER_ARM_M: Final = 10.0
 """A reference further from the CG than this [m] is refused as a typo (no car is longer
 than twice this)."""
 _HEADING_KINDS: Final = ("quaternion", "yaw_rad")
+IMU_FRAMES: Final = ("level", "body")
 
 
 class TopicMapError(ValueError):
@@ -89,6 +100,16 @@ class HeadingSource:
 
 
 @dataclass(frozen=True)
+class AttitudeSource:
+    """The body's orientation (a quaternion field: its roll and pitch are used), for an
+    accelerometer that reads in the body frame."""
+
+    topic: str
+    field: str
+    type: str | None = None
+
+
+@dataclass(frozen=True)
 class TopicMap:
     """Where each channel and the reference come from (see the module docstring)."""
 
@@ -100,6 +121,10 @@ class TopicMap:
     source: str = "<topic map>"
     reference_position_m: tuple[float, float] = (0.0, 0.0)
     """Where the reference measures, from the CG [m], body frame (x forward, y left)."""
+    imu_frame: str = "level"
+    """``level``: the mapped accelerations are the contract's (gravity-free, horizontal);
+    ``body``: specific force in the body frame, levelled with :attr:`imu_attitude`."""
+    imu_attitude: AttitudeSource | None = None
 
     @classmethod
     def load(cls, path: str | Path) -> TopicMap:
@@ -117,7 +142,7 @@ class TopicMap:
     def from_dict(cls, data: Any, source: str = "<topic map>") -> TopicMap:
         if not isinstance(data, Mapping):
             raise TopicMapError(f"{source}: expected a mapping with 'channels'")
-        unknown = set(data) - {"channels", "reference", "clock"}
+        unknown = set(data) - {"channels", "reference", "clock", "imu"}
         if unknown:
             raise TopicMapError(f"{source}: unknown key(s) {sorted(unknown)}")
         raw_channels = dict(data.get("channels") or {})
@@ -155,23 +180,35 @@ class TopicMap:
         clock = str(data.get("clock", "y_a_mps2"))
         if clock not in channels:
             raise TopicMapError(f"{source}: clock {clock!r} is not one of the mapped channels")
+        frame, attitude = _imu(data.get("imu"), source, channels)
         return cls(
-            channels, reference, clock, velocity_heading, reference_heading, source, position
+            channels,
+            reference,
+            clock,
+            velocity_heading,
+            reference_heading,
+            source,
+            position,
+            frame,
+            attitude,
         )
 
     @property
     def topics(self) -> set[str]:
         sources = [*self.channels.values(), *self.reference.values()]
         headings = [h for h in (self.velocity_heading, self.reference_heading) if h]
-        return {s.topic for s in sources} | {h.topic for h in headings}
+        attitude = {self.imu_attitude.topic} if self.imu_attitude else set()
+        return {s.topic for s in sources} | {h.topic for h in headings} | attitude
 
     def input_types(self) -> dict[str, str]:
         """Message type of every topic the inputs read (channels and their heading), for
         subscribing live. Raises :class:`TopicMapError` for a topic without a ``type``
         or with two."""
-        sources: list[FieldSource | HeadingSource] = list(self.channels.values())
+        sources: list[FieldSource | HeadingSource | AttitudeSource] = list(self.channels.values())
         if self.velocity_heading is not None:
             sources.append(self.velocity_heading)
+        if self.imu_attitude is not None:
+            sources.append(self.imu_attitude)
         types: dict[str, set[str]] = {}
         for src in sources:
             types.setdefault(src.topic, set())
@@ -238,6 +275,47 @@ def _heading(spec: Any, source: str, where: str) -> HeadingSource | None:
     return HeadingSource(
         str(spec["topic"]), str(spec["field"]), kind, None if msg_type is None else str(msg_type)
     )
+
+
+def _imu(
+    spec: Any, source: str, channels: Mapping[str, FieldSource]
+) -> tuple[str, AttitudeSource | None]:
+    """The ``imu`` block: the accelerometer's frame and, for ``body``, the attitude."""
+    if spec is None:
+        return "level", None
+    if not isinstance(spec, Mapping):
+        raise TopicMapError(f"{source}: imu must be a mapping with 'frame' (and 'attitude')")
+    unknown = set(spec) - {"frame", "attitude"}
+    if unknown:
+        raise TopicMapError(f"{source}: imu: unknown key(s) {sorted(unknown)}")
+    frame = str(spec.get("frame", "level"))
+    if frame not in IMU_FRAMES:
+        raise TopicMapError(f"{source}: imu.frame {frame!r}: must be one of {IMU_FRAMES}")
+    raw = spec.get("attitude")
+    if frame == "level":
+        if raw is not None:
+            raise TopicMapError(
+                f"{source}: imu.attitude is only read with imu.frame: body (a level "
+                "accelerometer has no gravity to take out)"
+            )
+        return frame, None
+    if raw is None:
+        raise TopicMapError(
+            f"{source}: imu.frame: body needs imu.attitude (an orientation quaternion whose "
+            "roll and pitch take gravity out of the accelerations)"
+        )
+    if not isinstance(raw, Mapping) or not {"topic", "field"} <= set(raw):
+        raise TopicMapError(f"{source}: imu.attitude needs 'topic' and 'field'")
+    bad = set(raw) - {"topic", "field", "type"}
+    if bad:
+        raise TopicMapError(f"{source}: imu.attitude: unknown key(s) {sorted(bad)}")
+    if not {"x_a_mps2", "y_a_mps2"} & set(channels):
+        raise TopicMapError(f"{source}: imu.frame: body but no x_a_mps2 or y_a_mps2 is mapped")
+    msg_type = raw.get("type")
+    attitude = AttitudeSource(
+        str(raw["topic"]), str(raw["field"]), None if msg_type is None else str(msg_type)
+    )
+    return frame, attitude
 
 
 # --- reading ----------------------------------------------------------------------------------

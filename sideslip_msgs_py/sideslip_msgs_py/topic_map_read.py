@@ -17,9 +17,10 @@ from .bag_raw import open_raw_bag
 from .errors import BagError, MissingTopicError
 from .features import CHANNELS
 from .field_path import field_value
+from .imu_frame import level_accelerations, roll_pitch
 from .message_fields import stamp_ns
 from .sample import SampleArrays
-from .topic_map import FieldSource, HeadingSource, TopicMap, heading_yaw
+from .topic_map import AttitudeSource, FieldSource, HeadingSource, TopicMap, heading_yaw
 
 
 @dataclass
@@ -113,6 +114,12 @@ def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
         cols["x_v_mps"], cols["y_v_mps"] = _to_body(
             cols["x_v_mps"], cols["y_v_mps"], topic_map.velocity_heading, decoded, stamps, path
         )
+    if topic_map.imu_attitude is not None:
+        _level(cols, topic_map.imu_attitude, decoded, stamps, path)
+        notes.append(
+            f"accelerations read in the body frame: levelled with the roll and pitch of "
+            f"{topic_map.imu_attitude.topic}"
+        )
     for name in CHANNELS:
         if name not in cols:
             cols[name] = np.full(stamps.shape, np.nan)
@@ -158,6 +165,30 @@ def _derive_other_channels(
             cols[ch.name] = np.gradient(cols[ch.rate_of], stamps * 1e-9)
         else:
             cols[ch.name] = np.zeros(stamps.shape)
+
+
+def _level(
+    cols: dict[str, npt.NDArray[np.float64]],
+    attitude: AttitudeSource,
+    decoded: Mapping[str, list[tuple[int, Any]]],
+    stamps: npt.NDArray[np.int64],
+    path: Path,
+) -> None:
+    """The mapped accelerations, read in the body frame, in the level frame (in place)."""
+    messages = decoded[attitude.topic]
+
+    def angle(k: int) -> npt.NDArray[np.float64]:
+        series = _series(messages, attitude.field, attitude.topic, path, lambda q: roll_pitch(q)[k])
+        return _at(series, stamps)
+
+    roll, pitch = angle(0), angle(1)
+    zeros = np.zeros(stamps.shape)
+    a_x, a_y = level_accelerations(
+        cols.get("x_a_mps2", zeros), cols.get("y_a_mps2", zeros), roll, pitch
+    )
+    for name, levelled in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
+        if name in cols:
+            cols[name] = levelled
 
 
 def _to_body(

@@ -6,6 +6,9 @@ drives of those cars than their fleet-style ones, for choices that the held-out
 benchmark will score, made without it.
 
     python training/scripts/validation_benchmark.py --cars 0 1 2 3 4 5 6 7 --out data/val-benchmark
+
+``--imu-frame body`` / ``--imu-position X Y``: the same drives read by an IMU in the body
+frame or away from the CG (:mod:`sideslip_sim.imu_mounting`).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from pathlib import Path
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.imu_mounting import ImuMounting
 from sideslip_sim.presets import benchmark_runs
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -28,11 +32,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cars", type=int, nargs="+", required=True, help="validation car indices")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--imu-frame", choices=("level", "body"), default="level")
+    p.add_argument("--imu-position", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
     args = p.parse_args(argv)
+    imu = ImuMounting(tuple(args.imu_position), args.imu_frame)
     fleet = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
     runs = benchmark_runs({fleet[k].name: fleet[k] for k in args.cars})
     prepare_output(args.out, force=True)
-    generate(runs, args.out, noise="paper", preset_name="validation-benchmark", jobs=args.jobs)
+    generate(runs, args.out, noise="paper", preset_name="validation-benchmark", jobs=args.jobs,
+             imu=imu)  # fmt: skip
     return 0
 
 

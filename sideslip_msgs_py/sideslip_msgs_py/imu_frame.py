@@ -1,0 +1,68 @@
+"""A body-frame accelerometer's reading turned into the contract's level acceleration.
+
+The contract's X_a, Y_a (and every model's inputs) are the CG acceleration in the
+horizontal, yaw-aligned vehicle frame, free of gravity (docs/vehicle-model.md). A
+``sensor_msgs/Imu`` from a strapdown IMU carries specific force in the body frame with
+gravity in it (REP 145): in a turn the body rolls and Y_a reads a_y·cos φ + g·sin φ,
+under braking it pitches and X_a reads a_x·cos θ − g·sin θ. With the body's roll φ and
+pitch θ (an AHRS or INS orientation, ``imu.attitude`` of a topic map) the inverse is
+
+    a_y = (f_y − g·sin φ) / cos φ,   a_x = (f_x + g·sin θ) / cos θ,
+
+exact for the simulator's body-frame IMU (``sideslip_sim.imu_mounting``, which leaves
+out the products of roll and pitch) and, for a real one, as long as the car does not
+accelerate vertically. Frames are REP 103's: x forward, y left, z up; a positive roll
+lifts the left side (the body leans right, as in a left turn), a positive pitch is nose
+down, which is what a quaternion's roll about x and pitch about y give in that frame.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Final, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from .model_inputs import GRAVITY_MPS2
+
+MAX_TILT_RAD: Final = math.radians(45.0)
+"""A roll or pitch beyond this is no car on a road: the sample is NaN (not a division
+by a cosine near 0)."""
+
+Values = TypeVar("Values", float, npt.NDArray[np.float64])
+
+
+def roll_pitch(quaternion: Any) -> tuple[float, float]:
+    """Roll and pitch [rad] of a ``geometry_msgs/Quaternion`` (x, y, z, w; the body's
+    orientation in a z-up world frame), as roll about x, then pitch about y (the
+    aerospace Z-Y-X order, which is ROS's ``tf2`` RPY)."""
+    x, y, z, w = (float(getattr(quaternion, k)) for k in ("x", "y", "z", "w"))
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm) or norm < 1e-9:
+        raise ValueError(
+            f"orientation quaternion ({x}, {y}, {z}, {w}) has no direction (an IMU without "
+            "an orientation estimate publishes zeros: map another attitude source)"
+        )
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    return roll, pitch
+
+
+def level_accelerations(
+    f_x: Values, f_y: Values, roll_rad: Values, pitch_rad: Values
+) -> tuple[Values, Values]:
+    """The level-frame CG accelerations (a_x, a_y) [m/s²] of a body-frame accelerometer's
+    specific force (f_x, f_y) [m/s²] at roll and pitch [rad] (see module); NaN where the
+    tilt exceeds :data:`MAX_TILT_RAD`."""
+    roll = np.asarray(roll_rad, dtype=float)
+    pitch = np.asarray(pitch_rad, dtype=float)
+    tilted = (np.abs(roll) > MAX_TILT_RAD) | (np.abs(pitch) > MAX_TILT_RAD)
+    a_x = (np.asarray(f_x, dtype=float) + GRAVITY_MPS2 * np.sin(pitch)) / np.cos(pitch)
+    a_y = (np.asarray(f_y, dtype=float) - GRAVITY_MPS2 * np.sin(roll)) / np.cos(roll)
+    a_x = np.where(tilted, np.nan, a_x)
+    a_y = np.where(tilted, np.nan, a_y)
+    if np.ndim(a_x) == 0:
+        return float(a_x), float(a_y)  # type: ignore[return-value]
+    return a_x, a_y  # type: ignore[return-value]
