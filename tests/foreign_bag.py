@@ -62,7 +62,11 @@ def make_truth(n: int, rate_hz: float = 100.0, seed: int = 0) -> Truth:
         x_v=x_v + rng.normal(0, 0.05, n),
         y_v=y_v + rng.normal(0, 0.05, n),
         x_a=rng.normal(0, 0.1, n),
-        y_a=x_v * r + rng.normal(0, 0.1, n),
+        # a_y = v̇_y + v_x·r, as on a car: the accelerometer check (sideslip_training.
+        # accelerometer_check) finds these recordings' IMU right.
+        y_a=x_v * r
+        + 0.6 * 2 * math.pi * 0.4 * np.cos(2 * math.pi * 0.4 * t + 0.3 + seed)
+        + rng.normal(0, 0.1, n),
         r=r,
         stl=0.02 * np.sin(2 * math.pi * 0.4 * t + seed),
         yaw=yaw,

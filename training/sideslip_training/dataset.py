@@ -48,6 +48,7 @@ from sideslip_msgs_py.sample import SampleArrays
 from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
+from .accelerometer_check import check_accelerometer
 from .bag_paths import DatasetError, find_bags
 from .dataset_report import DatasetReport
 
@@ -317,6 +318,11 @@ def load_runs(
                     bag=name,
                 )
             )
+    # Recordings from other stacks most often go wrong in the accelerometer's frame, unit
+    # or sign; with a reference that is measurable, so it is said here, for every tool.
+    accelerometer = check_accelerometer(runs) if require_truth else None
+    if accelerometer is not None and accelerometer.warning:
+        lines.append(accelerometer.warning)
     report = DatasetReport(
         bags_found=len(bags),
         bags_used=len({r.bag for r in runs}),
@@ -328,6 +334,7 @@ def load_runs(
         gaps=gaps,
         nonfinite_samples=nonfinite,
         lines=tuple(lines),
+        accelerometer=accelerometer,
     )
     if not runs:
         reasons = "; ".join(refused)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .accelerometer_check import AccelerometerCheck
+
 
 @dataclass(frozen=True)
 class DatasetReport:
@@ -24,6 +26,8 @@ class DatasetReport:
         nonfinite_samples: samples with NaN/inf in a checked channel or in β (no window
             contains them).
         lines: one line per event, each naming its bag.
+        accelerometer: the recorded Y_a against the reference's lateral acceleration
+            (:mod:`.accelerometer_check`; None without a reference or enough cornering).
     """
 
     bags_found: int
@@ -36,6 +40,7 @@ class DatasetReport:
     gaps: int
     nonfinite_samples: int
     lines: tuple[str, ...]
+    accelerometer: AccelerometerCheck | None = None
 
     def counts(self) -> dict[str, int | float]:
         """The counts as a JSON-ready dict (for run folders and model metadata)."""
