@@ -11,7 +11,7 @@ from . import topics
 from .errors import BagError
 from .features import feature_set
 from .field_path import field_value
-from .imu_frame import level_accelerations, roll_pitch
+from .imu_frame import YawAcceleration, at_cg, level_accelerations, roll_pitch
 from .message_fields import FIELDS_RECORDS, stamp_ns
 from .topic_map import FieldSource, TopicMap, heading_yaw
 
@@ -31,7 +31,8 @@ class LiveMapper:
     models that read it), a channel that is no model input (the rack's rate) as NaN;
     an unmapped measurable channel (yaw rate, acceleration, ...) makes no sample.
     With ``imu.frame: body`` the accelerations are levelled with the latest attitude
-    (no sample before the first one), as :func:`~.topic_map_read.read_mapped_bag` does.
+    (no sample before the first one), and with ``imu.position_m`` moved to the CG (ṙ
+    from the yaw rate of the samples, as :func:`~.topic_map_read.read_mapped_bag` does).
     """
 
     def __init__(self, topic_map: TopicMap) -> None:
@@ -40,6 +41,7 @@ class LiveMapper:
         self._values: dict[str, tuple[int, float]] = {}
         self._yaw: float | None = None
         self._tilt: tuple[float, float] | None = None
+        self._yaw_accel = YawAcceleration()
         self._by_topic: dict[str, list[tuple[str, FieldSource]]] = {}
         for name, src in topic_map.channels.items():
             self._by_topic.setdefault(src.topic, []).append((name, src))
@@ -67,6 +69,11 @@ class LiveMapper:
         if topic != self.clock_topic:
             return None
         v = dict(self._values)
+        moved = self.map.imu_position_m != (0.0, 0.0)
+        # ṙ advances on every clock message, sample or not, as over a bag's clock stamps.
+        r_dot = 0.0
+        if moved:
+            r_dot = self._yaw_accel.update(stamp, v.get("yaw_rate_radps", (0, math.nan))[1])
         if any(n not in v for n in feature_set("measurable")):
             return None
         if heading is not None:
@@ -82,6 +89,12 @@ class LiveMapper:
             a_x, a_y = level_accelerations(
                 v.get("x_a_mps2", (0, 0.0))[1], v.get("y_a_mps2", (0, 0.0))[1], *self._tilt
             )
+            for name, value in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
+                if name in v:
+                    v[name] = (v[name][0], float(value))
+        if moved:
+            a_x, a_y = at_cg(v.get("x_a_mps2", (0, 0.0))[1], v.get("y_a_mps2", (0, 0.0))[1],
+                             v["yaw_rate_radps"][1], r_dot, self.map.imu_position_m)  # fmt: skip
             for name, value in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
                 if name in v:
                     v[name] = (v[name][0], float(value))

@@ -17,7 +17,7 @@ from .bag_raw import open_raw_bag
 from .errors import BagError, MissingTopicError
 from .features import CHANNELS
 from .field_path import field_value
-from .imu_frame import level_accelerations, roll_pitch
+from .imu_frame import at_cg, level_accelerations, roll_pitch, yaw_accelerations
 from .message_fields import stamp_ns
 from .sample import SampleArrays
 from .topic_map import AttitudeSource, FieldSource, HeadingSource, TopicMap, heading_yaw
@@ -120,6 +120,10 @@ def read_mapped_bag(path: str | Path, topic_map: TopicMap) -> MappedBag:
             f"accelerations read in the body frame: levelled with the roll and pitch of "
             f"{topic_map.imu_attitude.topic}"
         )
+    if topic_map.imu_position_m != (0.0, 0.0):
+        _to_cg(cols, topic_map.imu_position_m, stamps)
+        x, y = topic_map.imu_position_m
+        notes.append(f"IMU at ({x:g}, {y:g}) m from the CG: its lever arm taken out")
     for name in CHANNELS:
         if name not in cols:
             cols[name] = np.full(stamps.shape, np.nan)
@@ -189,6 +193,23 @@ def _level(
     for name, levelled in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
         if name in cols:
             cols[name] = levelled
+
+
+def _to_cg(
+    cols: dict[str, npt.NDArray[np.float64]],
+    position_m: tuple[float, float],
+    stamps: npt.NDArray[np.int64],
+) -> None:
+    """The mapped level accelerations of an IMU at ``position_m``, at the CG (in place)."""
+    r = cols["yaw_rate_radps"]
+    zeros = np.zeros(stamps.shape)
+    a_x, a_y = at_cg(
+        cols.get("x_a_mps2", zeros), cols.get("y_a_mps2", zeros), r,
+        yaw_accelerations(stamps, r), position_m,
+    )  # fmt: skip
+    for name, moved in (("x_a_mps2", a_x), ("y_a_mps2", a_y)):
+        if name in cols:
+            cols[name] = moved
 
 
 def _to_body(

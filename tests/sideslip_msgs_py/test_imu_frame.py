@@ -3,6 +3,7 @@ attitude, in bags and live, as the contract's gravity-free horizontal ones."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -156,3 +157,87 @@ def test_a_live_body_frame_map_needs_the_attitudes_message_type() -> None:
         "/imu/data": "sensor_msgs/msg/Imu",
         "/ahrs": "sensor_msgs/msg/Imu",
     }
+
+
+def test_the_yaw_acceleration_follows_a_ramp_and_starts_afresh_after_a_gap() -> None:
+    from sideslip_msgs_py.imu_frame import YawAcceleration
+
+    filt = YawAcceleration()
+    step = 2_500_000
+    assert filt.update(0, 0.1) == 0.0  # nothing to difference yet
+    values = [filt.update(k * step, 0.1 + 0.5 * k * step * 1e-9) for k in range(1, 400)]
+    assert values[-1] == pytest.approx(0.5, rel=1e-6)
+    assert math.isnan(filt.update(400 * step, math.nan))
+    assert filt.update(401 * step, 0.1 + 0.5 * 401 * step * 1e-9) == pytest.approx(0.5, rel=1e-3)
+    assert filt.update(10**12, 0.3) == 0.0  # a gap: afresh
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=st.floats(-2.0, 2.0), y=st.floats(-1.0, 1.0), seed=st.integers(0, 2**16))
+def test_moving_to_the_cg_undoes_the_simulators_lever_arm(x: float, y: float, seed: int) -> None:
+    from sideslip_msgs_py.imu_frame import at_cg
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(60) * 0.0025
+    a_x, a_y, r = rng.normal(0, 3, 60), rng.normal(0, 6, 60), rng.normal(0, 0.4, 60)
+    zeros = np.zeros(60)
+    f_x, f_y = mounted_accelerations(ImuMounting((x, y)), t, a_x, a_y, r, zeros, zeros)
+    back_x, back_y = at_cg(f_x, f_y, r, np.gradient(r, t), (x, y))
+    np.testing.assert_allclose(back_x, a_x, atol=1e-9)
+    np.testing.assert_allclose(back_y, a_y, atol=1e-9)
+
+
+def _ahead_of_the_cg(tmp_path: Path, x: float):
+    """A foreign bag whose IMU sits ``x`` m ahead of the CG, and its truth."""
+    truth = make_truth(2000)
+    t = (truth.stamp_ns - truth.stamp_ns[0]) * 1e-9
+    r_dot = np.gradient(truth.r, t)
+    moved = dataclasses.replace(truth, y_a=truth.y_a + r_dot * x, x_a=truth.x_a - truth.r**2 * x)
+    return write_foreign_bag(tmp_path / "ahead", moved), truth
+
+
+def test_a_bag_from_an_imu_ahead_of_the_cg_reads_back_the_cg_accelerations(tmp_path: Path) -> None:
+    bag, truth = _ahead_of_the_cg(tmp_path, 0.8)
+    raw = read_mapped_bag(bag, TopicMap.from_dict(TOPIC_MAP)).samples
+    mapped = read_mapped_bag(
+        bag, TopicMap.from_dict({**TOPIC_MAP, "imu": {"position_m": [0.8, 0]}})
+    )
+    err_raw = np.abs(raw.y_a_mps2 - truth.y_a)[50:]
+    err = np.abs(mapped.samples.y_a_mps2 - truth.y_a)[50:]
+    # The causal ṙ lags by its 20-ms time constant: a few cm/s² left of 0.6 m/s².
+    assert err_raw.max() > 0.5 and err.max() < 0.1
+    np.testing.assert_allclose(mapped.samples.x_a_mps2, truth.x_a, atol=1e-9)
+    assert any("lever arm taken out" in n for n in mapped.notes)
+
+
+def test_the_live_mapper_moves_each_sample_to_the_cg_as_the_bag_reader_does(
+    tmp_path: Path,
+) -> None:
+    from rosbags.highlevel import AnyReader
+
+    from sideslip_msgs_py.live_inputs import LiveMapper
+
+    bag, _ = _ahead_of_the_cg(tmp_path, 0.8)
+    spec = {**BODY_MAP, "imu": {**BODY_MAP["imu"], "position_m": [0.8, -0.1]}}
+    offline = read_mapped_bag(bag, TopicMap.from_dict(spec)).samples
+    mapper = LiveMapper(TopicMap.from_dict(spec))
+    live_x, live_y = [], []
+    with AnyReader([bag]) as reader:
+        for conn, t, raw in reader.messages():
+            out = mapper.on_message(conn.topic, reader.deserialize(raw, conn.msgtype), t)
+            if out is not None:
+                live_x.append(out[2].x_a_mps2)
+                live_y.append(out[2].y_a_mps2)
+    # The node makes no sample before every channel has a value (the first IMU message
+    # comes before the first odometry); from then on the samples are the bag reader's.
+    assert len(live_y) == len(offline.y_a_mps2) - 1
+    np.testing.assert_allclose(live_x, offline.x_a_mps2[1:], atol=1e-12)
+    np.testing.assert_allclose(live_y, offline.y_a_mps2[1:], atol=1e-12)
+
+
+def test_an_imu_position_needs_the_yaw_rate() -> None:
+    channels = {k: v for k, v in TOPIC_MAP["channels"].items() if k != "yaw_rate_radps"}
+    with pytest.raises(TopicMapError, match=r"imu\.position_m needs the yaw_rate_radps"):
+        TopicMap.from_dict({"channels": channels, "imu": {"position_m": [0.5, 0.0]}})
+    with pytest.raises(TopicMapError, match=r"imu\.position_m \[40"):
+        TopicMap.from_dict({**TOPIC_MAP, "imu": {"position_m": [40.0, 0.0]}})
