@@ -11,7 +11,12 @@ gradient), so without an attitude source the best a topic map can do is a scale,
   nothing of the car's roll;
 - ``own``: κ from the car's own drives without any reference: Y_a against X_v·ψ̇ over
   quasi-steady samples (|ψ̈| < 0.1 rad/s², filtered at 2 Hz), whose slope is 1 + κ for
-  a level IMU up to the steady-state terms.
+  a level IMU up to the steady-state terms;
+- ``checked``: the scale the data report's accelerometer check gives for the car's
+  drives with their reference (:mod:`sideslip_training.accelerometer_check`), for an
+  owner with labelled recordings.
+
+``--variants`` scores some of them only (``level`` among them or not).
 
 Every car is scored with its true ``ukf`` file, the models given and the UKF, through a
 topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled MAE
@@ -23,6 +28,10 @@ topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled 
         --body data/val-benchmark-imu-body \
         --calibration data/val-benchmark-2 data/val-benchmark-2-imu-body \
         --model fleet_ukf_ensemble --out imu-frame-validation.json
+
+``--lever-arm DIR X Y`` scores instead an IMU at (X, Y) m from the CG (``DIR``: the same
+drives generated with ``--imu-position X Y``), as recorded and with the topic map's
+``imu.position_m`` taking the lever arm out, beside the level IMU at the CG.
 """
 
 from __future__ import annotations
@@ -39,7 +48,9 @@ from scipy.signal import butter, sosfiltfilt
 
 from sideslip_msgs_py.bag import read_bag
 from sideslip_sim.fleet import sample_fleet
-from sideslip_sim.held_out import held_out_digests
+from sideslip_sim.held_out import held_out_digests, held_out_vehicles
+from sideslip_training.accelerometer_check import check_accelerometer
+from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.init_model import resolve
 
@@ -100,29 +111,72 @@ def gravity_share_own(bags: list[Path]) -> float:
     return float(np.dot(x, y) / np.dot(x, x) - 1.0)
 
 
+def _score(
+    folder: Path,
+    variant: str,
+    bags: list[Path],
+    spec: dict,
+    models: list[str],
+    car_files: list[str],
+) -> dict[str, float] | int:
+    """Pooled MAE per estimator of ``bags`` read through the topic map ``spec``."""
+    topic_map = folder / f"{variant.replace(', ', '-').replace(' ', '_')}.yaml"
+    topic_map.write_text(yaml.safe_dump(spec, sort_keys=False))
+    report = topic_map.with_suffix(".report")
+    code = evaluate_main(["--model", *models, "--data", *map(str, bags), "--out", str(report),
+                          "--force", "--topic-map", str(topic_map), *car_files])  # fmt: skip
+    if code:
+        return code
+    stems = [Path(m).stem for m in models]
+    got = pooled_mae(report, stems, stems[0] if len(stems) == 1 else None)
+    return {k: v for k, v in got.items() if "β" not in k}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--level", type=Path, required=True, help="validation_benchmark.py folder")
-    p.add_argument("--body", type=Path, required=True, help="the same drives, --imu-frame body")
-    p.add_argument("--calibration", type=Path, nargs=2, required=True, metavar=("LEVEL", "BODY"),
+    p.add_argument("--body", type=Path, help="the same drives, --imu-frame body")
+    p.add_argument("--calibration", type=Path, nargs=2, metavar=("LEVEL", "BODY"),
                    help="other cars' drives, level and body, for the typical κ")  # fmt: skip
+    p.add_argument("--lever-arm", nargs=3, metavar=("DIR", "X", "Y"),
+                   help="score an IMU at (X, Y) m from the CG instead (see module)")  # fmt: skip
     p.add_argument("--model", nargs="+", default=["fleet_ukf_ensemble"])
+    p.add_argument("--variants", nargs="+", help="score only these variants")
+    p.add_argument("--held-out", action="store_true",
+                   help="the folders hold the held-out cars' runs (scored once)")  # fmt: skip
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    fleet = {
-        v.name: v
-        for v in sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
-    }
-    cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
-    typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
-    typical = float(np.median(list(typical_cars.values())))
-    print(f"typical κ {typical:.4f} over {len(typical_cars)} calibration cars", file=sys.stderr)
+    if args.lever_arm is None and (args.body is None or args.calibration is None):
+        p.error("--body and --calibration are needed without --lever-arm")
+    fleet = (
+        held_out_vehicles()
+        if args.held_out
+        else {
+            v.name: v
+            for v in sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
+        }
+    )
+    summary: dict[str, object] = {}
+    if args.lever_arm is None:
+        cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
+        typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
+        typical = float(np.median(list(typical_cars.values())))
+        print(f"typical κ {typical:.4f} over {len(typical_cars)} calibration cars", file=sys.stderr)
+        summary = {"typical_kappa": typical, "calibration_cars": typical_cars}
+        other = bags_by_car(args.body)
+        variants = ("level", "body", "body, typical scale", "body, own scale",
+                    "body, checked scale")  # fmt: skip
+    else:
+        other = bags_by_car(Path(args.lever_arm[0]))
+        position = [float(args.lever_arm[1]), float(args.lever_arm[2])]
+        summary = {"imu_position_m": position}
+        variants = ("level", "away", "away, moved to the CG")
     models = [str(resolve(m)) for m in args.model]
     stems = [Path(m).stem for m in models]
     work = args.out.with_suffix(".work")
-    level, body = bags_by_car(args.level), bags_by_car(args.body)
+    level = bags_by_car(args.level)
     results: dict[str, dict[str, object]] = {}
-    for car in sorted(body):
+    for car in sorted(other):
         folder = work / car
         folder.mkdir(parents=True, exist_ok=True)
         true_file = write_true_ukf(fleet[car], folder / "true.ukf.yaml", "imu_frame_check.py")
@@ -131,33 +185,40 @@ def main(argv: list[str] | None = None) -> int:
         # Mapped bags record no car: the node's files, the car's true ones.
         car_files = ["--vehicle", str(desc), "--observer-params", str(true_file), "--car",
                      "given", "--ukf-params", str(true_file)]  # fmt: skip
-        kappa = {"true": gravity_share_true(level[car], body[car]),
-                 "own": gravity_share_own(body[car])}  # fmt: skip
-        row: dict[str, object] = {"kappa": kappa}
-        for variant, bags, scale in (
-            ("level", level[car], 1.0),
-            ("body", body[car], 1.0),
-            ("body, typical scale", body[car], 1.0 / (1.0 + typical)),
-            ("body, own scale", body[car], 1.0 / (1.0 + kappa["own"])),
-        ):
-            spec = json.loads(json.dumps(CONTRACT_MAP))
-            spec["channels"]["y_a_mps2"]["scale"] = scale
-            topic_map = folder / f"{variant.replace(', ', '-').replace(' ', '_')}.yaml"
-            topic_map.write_text(yaml.safe_dump(spec, sort_keys=False))
-            report = topic_map.with_suffix(".report")
-            code = evaluate_main(["--model", *models, "--data", *map(str, bags), "--out",
-                                  str(report), "--force", "--topic-map", str(topic_map),
-                                  *car_files])  # fmt: skip
-            if code:
-                return code
-            lone = stems[0] if len(stems) == 1 else None
-            got = pooled_mae(report, stems, lone)
-            row[variant] = {k: v for k, v in got.items() if "β" not in k}
+        row: dict[str, object] = {}
+        plans: list[tuple[str, list[Path], dict]] = [("level", level[car], CONTRACT_MAP)]
+        if args.lever_arm is None:
+            check = check_accelerometer(load_runs(other[car])[0])
+            kappa = {"true": gravity_share_true(level[car], other[car]),
+                     "own": gravity_share_own(other[car]),
+                     "checked": float("nan") if check is None else check.scale - 1.0}  # fmt: skip
+            row["kappa"] = kappa
+            scales = {
+                "body": 1.0,
+                "body, typical scale": 1.0 / (1.0 + typical),
+                "body, own scale": 1.0 / (1.0 + kappa["own"]),
+                "body, checked scale": 1.0 / (1.0 + kappa["checked"]),
+            }
+            for variant, scale in scales.items():
+                spec = json.loads(json.dumps(CONTRACT_MAP))
+                spec["channels"]["y_a_mps2"]["scale"] = scale
+                plans.append((variant, other[car], spec))
+        else:
+            plans.append(("away", other[car], CONTRACT_MAP))
+            plans.append(("away, moved to the CG", other[car],
+                          {**CONTRACT_MAP, "imu": {"position_m": position}}))  # fmt: skip
+        for variant, bags, spec in plans:
+            if args.variants and variant not in args.variants:
+                continue
+            got = _score(folder, variant, bags, spec, models, car_files)
+            if isinstance(got, int):
+                return got
+            row[variant] = got
         results[car] = row
         print(car, json.dumps(row), file=sys.stderr, flush=True)
-    summary = {"typical_kappa": typical, "calibration_cars": typical_cars, "cars": results}
+    summary["cars"] = results
     args.out.write_text(json.dumps(summary, indent=1) + "\n")
-    variants = ("level", "body", "body, typical scale", "body, own scale")
+    variants = tuple(v for v in variants if not args.variants or v in args.variants)
     for key in [*stems, "UKF"]:
         means = {v: np.mean([r[v][key] for r in results.values()]) for v in variants}  # type: ignore[index]
         print(f"| {key} | " + " | ".join(f"{means[v]:.4f}" for v in variants) + " |")
