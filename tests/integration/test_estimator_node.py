@@ -502,6 +502,69 @@ def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_
         assert lin.x == 20.0 and math.atan(lin.y / lin.x) == pytest.approx(beta, abs=1e-12)
 
 
+def test_a_strapdown_imu_without_orientation_is_named_and_one_with_it_gives_estimates(
+    spawn, probe, tmp_path
+):
+    """A body-frame map levels with the IMU's own orientation: zeros (no orientation
+    estimate) are refused per message naming why, a real orientation gives estimates."""
+    import yaml
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu
+
+    spec = {
+        **LIVE_MAP,
+        "imu": {
+            "frame": "body",
+            "attitude": {
+                "topic": "/imu/data",
+                "field": "orientation",
+                "type": "sensor_msgs/msg/Imu",
+            },
+            "position_m": [0.5, 0.0],
+        },
+    }
+    path = tmp_path / "car.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    child = spawn(
+        "sideslip-estimator", "--ros-args", "-p", "backend:=kinematic",
+        "-p", f"topic_map_file:={path}", "-p", "max_gap_s:=5.0", "-p", "window_steps:=20",
+    )  # fmt: skip
+    twist = probe.subscribe(
+        topics.SIDESLIP_TWIST, TwistWithCovarianceStamped, profile_for(topics.SIDESLIP_TWIST)
+    )
+    pubs = {
+        "/imu/data": probe.publisher("/imu/data", Imu, 10),
+        "/odom": probe.publisher("/odom", Odometry, 10),
+        "/steering_wheel_deg": probe.publisher("/steering_wheel_deg", Float64, 10),
+    }
+    for pub in pubs.values():
+        probe.wait_for_subscribers(pub)
+
+    def send(orientation_w: float) -> None:
+        sec, nanosec = divmod(time.time_ns(), 10**9)
+        odom = Odometry()
+        odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
+        odom.twist.twist.linear.x, odom.twist.twist.linear.y = 20.0, 0.3
+        pubs["/odom"].publish(odom)
+        pubs["/steering_wheel_deg"].publish(Float64(data=30.0))
+        imu = Imu()
+        imu.header.stamp.sec, imu.header.stamp.nanosec = sec, nanosec
+        imu.orientation.w = orientation_w  # 0: x, y, z, w all zero
+        imu.linear_acceleration.y, imu.angular_velocity.z = 2.0, 0.1
+        pubs["/imu/data"].publish(imu)
+        time.sleep(0.003)
+
+    deadline = time.monotonic() + 10.0
+    while "publishes zeros" not in child.output() and time.monotonic() < deadline:
+        send(0.0)
+    assert "publishes zeros" in child.output() and not twist  # named, nothing published
+    deadline = time.monotonic() + 20.0
+    while len(twist) < 20 and time.monotonic() < deadline:
+        send(1.0)
+    wait_for(lambda: len(twist) >= 20, 5, "estimates once the IMU has an orientation")
+    assert_outputs_finite([], twist)
+
+
 @pytest.mark.parametrize(
     ("change", "named"),
     [
