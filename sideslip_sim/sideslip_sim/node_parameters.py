@@ -18,6 +18,7 @@ from typing import Any, Final
 from sideslip_msgs_py.parameter_spec import ParameterSpec, help_text
 from sideslip_msgs_py.sample import SensorNoiseSigma
 from sideslip_msgs_py.timing import RATE_HZ
+from sideslip_sim.imu_mounting import ImuMounting, ImuMountingError
 from sideslip_sim.sensors import noise_profile
 from sideslip_sim.stream import ManeuverSpec, SampleStream, select_runs
 from sideslip_sim.vehicle import load_vehicle
@@ -49,7 +50,24 @@ class SigmaOverride:
         return SensorNoiseSigma(**picked)
 
 
-_GROUPS: Final = {"sigma": SigmaOverride, "maneuver": ManeuverSpec}
+@dataclass(frozen=True)
+class ImuSpec:
+    """Where the published IMU sits and which frame its accelerometer reads in (the
+    ``imu.*`` parameters; :mod:`sideslip_sim.imu_mounting`)."""
+
+    frame: str = "level"
+    position_x_m: float = 0.0
+    position_y_m: float = 0.0
+
+    def mounting(self) -> ImuMounting:
+        """The mounting; raises ParameterError naming the bad ``imu.*`` value."""
+        try:
+            return ImuMounting((self.position_x_m, self.position_y_m), self.frame)
+        except ImuMountingError as err:
+            raise ParameterError(f"imu.*: {err}") from None
+
+
+_GROUPS: Final = {"sigma": SigmaOverride, "maneuver": ManeuverSpec, "imu": ImuSpec}
 """Nested parameter groups: field of :class:`SimParams` → dataclass of ``name.*``."""
 
 
@@ -73,8 +91,10 @@ class SimParams:
     wait_for_subscribers_timeout_s: float = 0.0
     """0 = wait without limit."""
     maneuver: ManeuverSpec = field(default_factory=ManeuverSpec)
+    imu: ImuSpec = field(default_factory=ImuSpec)
 
     def __post_init__(self) -> None:
+        self.imu.mounting()
         rtf = self.real_time_factor
         if not rtf >= 0.0:
             raise ParameterError(f"real_time_factor must be >= 0, got {rtf}")
@@ -130,6 +150,7 @@ def open_stream(params: SimParams) -> SampleStream:
         loop=params.loop,
         decimation=params.decimation,
         ground_truth=params.ground_truth,
+        imu=params.imu.mounting(),
     )
 
 
@@ -192,6 +213,14 @@ PARAMETERS: Final = (
     _spec("maneuver.torque_nm", "Family runs: total drive torque [N m]."),
     _spec("maneuver.stl_amplitude_m", "Family runs: steering amplitude [m]; 0 = automatic."),
     _spec("maneuver.mu", "Family runs: road friction coefficient."),
+    _spec(
+        "imu.frame",
+        "level: the CG acceleration in the horizontal frame, free of gravity (what the "
+        "shipped models learnt); body: specific force in the body frame, gravity through "
+        "roll and pitch in it, as a strapdown IMU reads (no orientation is published).",
+    ),
+    _spec("imu.position_x_m", "The IMU's place ahead of the CG [m] (its lever arm)."),
+    _spec("imu.position_y_m", "The IMU's place left of the CG [m]."),
 )
 
 

@@ -24,6 +24,7 @@ from sideslip_msgs_py.sample import (
     SampleArrays,
     SensorNoiseSigma,
 )
+from sideslip_sim.imu_mounting import ImuMounting
 from sideslip_sim.maneuvers import FAMILIES, SCENARIOS, Maneuver, ManeuverError
 from sideslip_sim.presets import PRESETS, paper_test, preset
 from sideslip_sim.sensors import add_noise, exact_samples, run_seed
@@ -112,6 +113,7 @@ class SampleStream:
         loop: bool = False,
         decimation: int = 1,
         ground_truth: bool = True,
+        imu: ImuMounting | None = None,
     ) -> None:
         if not runs:
             raise ValueError("SampleStream: no runs")
@@ -124,6 +126,7 @@ class SampleStream:
         self.loop = loop
         self.decimation = decimation
         self.ground_truth = ground_truth
+        self.imu = imu
         self.encoder = SampleEncoder(sigma)
         self._next_stamp_ns = origin_ns
 
@@ -136,7 +139,9 @@ class SampleStream:
 
     def _run(self, m: Maneuver) -> RunChunk:
         result = simulate(self.vehicle, m)
-        noisy = add_noise(exact_samples(result), self.sigma, run_seed(self.seed, m.name))
+        noisy = add_noise(
+            exact_samples(result, imu=self.imu), self.sigma, run_seed(self.seed, m.name)
+        )
         if self._next_stamp_ns is None:
             self._next_stamp_ns = time.time_ns()
         keep = np.arange(0, len(noisy), self.decimation)

@@ -81,6 +81,7 @@ STR_NAMES = {
     "start_model_file",
     "engine",
     "frame_id",
+    "frame",  # imu.frame of the sim: level / body
     "topic_map_file",
     "mirror_average",  # auto / true / false (it takes a bool as well: ParameterSpec.takes_bool)
 }

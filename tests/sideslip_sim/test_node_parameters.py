@@ -58,6 +58,11 @@ def test_the_help_page_lists_every_parameter_with_its_default() -> None:
             {"wait_for_subscribers_timeout_s": float("inf")},
             "wait_for_subscribers_timeout_s must be finite and >= 0, got inf",
         ),
+        ({"imu.frame": "tilted"}, "imu.*: IMU frame 'tilted': must be one of level, body"),
+        (
+            {"imu.position_x_m": 7.0},
+            "imu.*: IMU position x = 7.0 m: must be finite and within ±5 m of the CG",
+        ),
     ],
 )
 def test_values_the_node_cannot_run_with_are_refused_naming_them(changed, message) -> None:
@@ -80,6 +85,25 @@ def test_the_stream_holds_the_named_runs_vehicle_noise_and_rate() -> None:
     assert [m.family for m in stream.runs] == ["straight"]
     assert stream.vehicle.name == "paper_sedan" and stream.sigma == SensorNoiseSigma.none()
     assert stream.loop and stream.decimation == 2 and stream.ground_truth
+
+
+def test_the_stream_publishes_what_sideslip_generate_writes_for_that_imu() -> None:
+    from sideslip_sim.imu_mounting import ImuMounting
+    from sideslip_sim.sensors import add_noise, exact_samples, run_seed
+    from sideslip_sim.simulate import simulate
+
+    params = _params(scenario="sine_steer", **{"imu.frame": "body", "imu.position_x_m": 0.6})
+    stream = open_stream(params)
+    assert stream.imu == ImuMounting((0.6, 0.0), "body")
+    chunk = next(iter(stream))
+    run = stream.runs[0]
+    want = add_noise(
+        exact_samples(simulate(stream.vehicle, run), imu=stream.imu),
+        stream.sigma,
+        run_seed(params.seed, run.name),
+    )
+    assert (chunk.samples.y_a_mps2 == want.y_a_mps2).all()
+    assert (chunk.samples.x_a_mps2 == want.x_a_mps2).all()
 
 
 def test_a_bad_scenario_or_noise_profile_is_refused_naming_it() -> None:
