@@ -18,6 +18,9 @@ gradient), so without an attitude source the best a topic map can do is a scale,
 
 ``--variants`` scores some of them only (``level`` among them or not).
 
+``--scales S ...`` scores instead the level IMU's drives with Y_a multiplied by each S
+(an accelerometer's scale error, or a κ taken out wrongly): how precise Y_a must be.
+
 Every car is scored with its true ``ukf`` file, the models given and the UKF, through a
 topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled MAE
 [deg] per car. Writes ``OUT`` (JSON), prints a table.
@@ -142,12 +145,17 @@ def main(argv: list[str] | None = None) -> int:
                    help="score an IMU at (X, Y) m from the CG instead (see module)")  # fmt: skip
     p.add_argument("--model", nargs="+", default=["fleet_ukf_ensemble"])
     p.add_argument("--variants", nargs="+", help="score only these variants")
+    p.add_argument("--scales", type=float, nargs="+", help="Y_a scale errors to score (see module)")
     p.add_argument("--held-out", action="store_true",
                    help="the folders hold the held-out cars' runs (scored once)")  # fmt: skip
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    if args.lever_arm is None and (args.body is None or args.calibration is None):
-        p.error("--body and --calibration are needed without --lever-arm")
+    if (
+        args.lever_arm is None
+        and args.scales is None
+        and (args.body is None or args.calibration is None)
+    ):
+        p.error("--body and --calibration are needed without --lever-arm or --scales")
     fleet = (
         held_out_vehicles()
         if args.held_out
@@ -157,7 +165,10 @@ def main(argv: list[str] | None = None) -> int:
         }
     )
     summary: dict[str, object] = {}
-    if args.lever_arm is None:
+    if args.scales is not None:
+        other = bags_by_car(args.level)
+        variants = tuple(f"level, Y_a × {k:g}" for k in args.scales)
+    elif args.lever_arm is None:
         cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
         typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
         typical = float(np.median(list(typical_cars.values())))
@@ -187,7 +198,13 @@ def main(argv: list[str] | None = None) -> int:
                      "given", "--ukf-params", str(true_file)]  # fmt: skip
         row: dict[str, object] = {}
         plans: list[tuple[str, list[Path], dict]] = [("level", level[car], CONTRACT_MAP)]
-        if args.lever_arm is None:
+        if args.scales is not None:
+            plans = []
+            for k in args.scales:
+                spec = json.loads(json.dumps(CONTRACT_MAP))
+                spec["channels"]["y_a_mps2"]["scale"] = k
+                plans.append((f"level, Y_a × {k:g}", level[car], spec))
+        elif args.lever_arm is None:
             check = check_accelerometer(load_runs(other[car])[0])
             kappa = {"true": gravity_share_true(level[car], other[car]),
                      "own": gravity_share_own(other[car]),
