@@ -249,14 +249,3 @@ def generate(
         for s in summaries:
             on_done(s)
     return summaries
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``sideslip-generate`` (:func:`sideslip_sim.generate_cli.main`)."""
-    from sideslip_sim.generate_cli import main as cli_main
-
-    return cli_main(argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

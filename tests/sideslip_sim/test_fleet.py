@@ -14,7 +14,7 @@ import yaml
 from sideslip_msgs_py.bag import read_bag
 from sideslip_sim import dynamics as dyn
 from sideslip_sim.fleet import TIRE_CHARACTERISTICS, FleetRanges, sample_fleet, vehicle_digest
-from sideslip_sim.generate import main
+from sideslip_sim.generate_cli import main
 from sideslip_sim.held_out import HELD_OUT_NAMES, held_out_digests, held_out_vehicles
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.plausibility import plausibility, plausibility_problems

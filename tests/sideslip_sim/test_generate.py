@@ -18,7 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.bag import read_bag
-from sideslip_sim.generate import main
+from sideslip_sim.generate_cli import main
 from sideslip_sim.vehicle import load_vehicle
 
 CLI = Path(sys.executable).parent / "sideslip-generate"
