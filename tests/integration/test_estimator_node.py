@@ -443,6 +443,21 @@ LIVE_MAP = {
 }
 
 
+def _mapped_publishers(probe) -> dict:
+    """Publishers of LIVE_MAP's topics, each matched with the node."""
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu
+
+    pubs = {
+        "/imu/data": probe.publisher("/imu/data", Imu, 10),
+        "/odom": probe.publisher("/odom", Odometry, 10),
+        "/steering_wheel_deg": probe.publisher("/steering_wheel_deg", Float64, 10),
+    }
+    for pub in pubs.values():
+        probe.wait_for_subscribers(pub)
+    return pubs
+
+
 def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_path):
     import yaml
     from nav_msgs.msg import Odometry
@@ -465,13 +480,7 @@ def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_
     twist = probe.subscribe(
         topics.SIDESLIP_TWIST, TwistWithCovarianceStamped, profile_for(topics.SIDESLIP_TWIST)
     )
-    pubs = {
-        "/imu/data": probe.publisher("/imu/data", Imu, 10),
-        "/odom": probe.publisher("/odom", Odometry, 10),
-        "/steering_wheel_deg": probe.publisher("/steering_wheel_deg", Float64, 10),
-    }
-    for pub in pubs.values():
-        probe.wait_for_subscribers(pub)
+    pubs = _mapped_publishers(probe)
     # β is the same at every step: DDS does not order messages of different topics, so
     # an IMU message may meet the odometry of the step before or after its own.
     sent = set()
@@ -532,13 +541,7 @@ def test_a_strapdown_imu_without_orientation_is_named_and_one_with_it_gives_esti
     twist = probe.subscribe(
         topics.SIDESLIP_TWIST, TwistWithCovarianceStamped, profile_for(topics.SIDESLIP_TWIST)
     )
-    pubs = {
-        "/imu/data": probe.publisher("/imu/data", Imu, 10),
-        "/odom": probe.publisher("/odom", Odometry, 10),
-        "/steering_wheel_deg": probe.publisher("/steering_wheel_deg", Float64, 10),
-    }
-    for pub in pubs.values():
-        probe.wait_for_subscribers(pub)
+    pubs = _mapped_publishers(probe)
 
     def send(orientation_w: float) -> None:
         sec, nanosec = divmod(time.time_ns(), 10**9)

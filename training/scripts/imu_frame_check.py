@@ -49,6 +49,7 @@ import numpy as np
 import yaml
 from scipy.signal import butter, sosfiltfilt
 
+from sideslip_msgs_py import topics
 from sideslip_msgs_py.bag import read_bag
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
@@ -63,15 +64,17 @@ from held_out_fit import description, pooled_mae, write_true_ukf
 
 CONTRACT_MAP = {
     "channels": {
-        "x_a_mps2": {"topic": "/vehicle/imu", "field": "linear_acceleration.x"},
-        "y_a_mps2": {"topic": "/vehicle/imu", "field": "linear_acceleration.y"},
-        "yaw_rate_radps": {"topic": "/vehicle/imu", "field": "angular_velocity.z"},
-        "x_v_mps": {"topic": "/vehicle/twist", "field": "twist.linear.x"},
-        "y_v_mps": {"topic": "/vehicle/twist", "field": "twist.linear.y"},
-        "stl_m": {"topic": "/vehicle/steering", "field": "position[steering_rack]"},
+        "x_a_mps2": {"topic": topics.IMU, "field": "linear_acceleration.x"},
+        "y_a_mps2": {"topic": topics.IMU, "field": "linear_acceleration.y"},
+        "yaw_rate_radps": {"topic": topics.IMU, "field": "angular_velocity.z"},
+        "x_v_mps": {"topic": topics.TWIST, "field": "twist.linear.x"},
+        "y_v_mps": {"topic": topics.TWIST, "field": "twist.linear.y"},
+        "stl_m": {"topic": topics.STEERING, "field": f"position[{topics.STEERING_JOINT}]"},
     },
-    "reference": {"beta_rad": {"topic": "/vehicle/ground_truth/sideslip", "field": "data"}},
+    "reference": {"beta_rad": {"topic": topics.GROUND_TRUTH_SIDESLIP, "field": "data"}},
 }
+"""The contract's own topics read through a topic map, so that a variant can scale a
+channel or name the IMU's mounting."""
 
 
 def bags_by_car(folder: Path) -> dict[str, list[Path]]:
