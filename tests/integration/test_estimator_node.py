@@ -458,10 +458,30 @@ def _mapped_publishers(probe) -> dict:
     return pubs
 
 
-def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_path):
-    import yaml
+def _publish_mapped_step(pubs: dict, orientation_w: float = 1.0) -> int:
+    """One step of LIVE_MAP's topics as a live stack sends it (X_v 20, Y_v 0.3 m/s, the
+    IMU stamped now with that orientation's w); returns the stamp [ns]."""
     from nav_msgs.msg import Odometry
     from sensor_msgs.msg import Imu
+
+    stamp = time.time_ns()
+    sec, nanosec = divmod(stamp, 10**9)
+    odom = Odometry()
+    odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
+    odom.twist.twist.linear.x, odom.twist.twist.linear.y = 20.0, 0.3
+    pubs["/odom"].publish(odom)
+    pubs["/steering_wheel_deg"].publish(Float64(data=30.0))
+    imu = Imu()
+    imu.header.stamp.sec, imu.header.stamp.nanosec = sec, nanosec
+    imu.header.frame_id = "imu_link"
+    imu.orientation.w = orientation_w
+    imu.linear_acceleration.y, imu.angular_velocity.z = 2.0, 0.1
+    pubs["/imu/data"].publish(imu)
+    return stamp
+
+
+def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_path):
+    import yaml
 
     path = tmp_path / "car.yaml"
     path.write_text(yaml.safe_dump(LIVE_MAP))
@@ -490,19 +510,7 @@ def test_inputs_of_another_stack_are_read_through_a_topic_map(spawn, probe, tmp_
     # (discovery runs per pair), and estimates published before that are not delivered.
     deadline = time.monotonic() + 20.0
     while len(twist) < 20 and time.monotonic() < deadline:
-        stamp = time.time_ns()
-        sec, nanosec = divmod(stamp, 10**9)
-        odom = Odometry()
-        odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
-        odom.twist.twist.linear.x, odom.twist.twist.linear.y = 20.0, 0.3
-        pubs["/odom"].publish(odom)
-        pubs["/steering_wheel_deg"].publish(Float64(data=30.0))
-        imu = Imu()
-        imu.header.stamp.sec, imu.header.stamp.nanosec = sec, nanosec
-        imu.header.frame_id = "imu_link"
-        imu.linear_acceleration.y, imu.angular_velocity.z = 2.0, 0.1
-        pubs["/imu/data"].publish(imu)
-        sent.add(stamp)
+        sent.add(_publish_mapped_step(pubs))
         time.sleep(0.003)
     wait_for(lambda: len(twist) >= 20, 5, "estimates from the mapped topics")
     for rec in twist:
@@ -517,8 +525,6 @@ def test_a_strapdown_imu_without_orientation_is_named_and_one_with_it_gives_esti
     """A body-frame map levels with the IMU's own orientation: zeros (no orientation
     estimate) are refused per message naming why, a real orientation gives estimates."""
     import yaml
-    from nav_msgs.msg import Odometry
-    from sensor_msgs.msg import Imu
 
     spec = {
         **LIVE_MAP,
@@ -544,17 +550,7 @@ def test_a_strapdown_imu_without_orientation_is_named_and_one_with_it_gives_esti
     pubs = _mapped_publishers(probe)
 
     def send(orientation_w: float) -> None:
-        sec, nanosec = divmod(time.time_ns(), 10**9)
-        odom = Odometry()
-        odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
-        odom.twist.twist.linear.x, odom.twist.twist.linear.y = 20.0, 0.3
-        pubs["/odom"].publish(odom)
-        pubs["/steering_wheel_deg"].publish(Float64(data=30.0))
-        imu = Imu()
-        imu.header.stamp.sec, imu.header.stamp.nanosec = sec, nanosec
-        imu.orientation.w = orientation_w  # 0: x, y, z, w all zero
-        imu.linear_acceleration.y, imu.angular_velocity.z = 2.0, 0.1
-        pubs["/imu/data"].publish(imu)
+        _publish_mapped_step(pubs, orientation_w)  # 0: x, y, z, w all zero
         time.sleep(0.003)
 
     deadline = time.monotonic() + 10.0
