@@ -67,6 +67,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
+from . import topics
 from .features import CHANNELS
 
 REFERENCE_KEYS: Final = ("beta_rad", "v_x_mps", "v_y_mps")
@@ -75,6 +76,27 @@ MAX_LEVER_ARM_M: Final = 10.0
 than twice this)."""
 _HEADING_KINDS: Final = ("quaternion", "yaw_rad")
 IMU_FRAMES: Final = ("level", "body")
+
+
+def contract_topic_map() -> dict[str, Any]:
+    """The contract's own topics (:mod:`.topics`) as a topic map (a fresh mapping, with
+    each topic's type, so that the node can subscribe to it too): a start for a map that
+    scales a channel or names the IMU's mounting on our topics."""
+
+    def source(topic: str, field: str) -> dict[str, str]:
+        return {"topic": topic, "field": field, "type": topics.TOPIC_TYPES[topic]}
+
+    return {
+        "channels": {
+            "x_a_mps2": source(topics.IMU, "linear_acceleration.x"),
+            "y_a_mps2": source(topics.IMU, "linear_acceleration.y"),
+            "yaw_rate_radps": source(topics.IMU, "angular_velocity.z"),
+            "x_v_mps": source(topics.TWIST, "twist.linear.x"),
+            "y_v_mps": source(topics.TWIST, "twist.linear.y"),
+            "stl_m": source(topics.STEERING, f"position[{topics.STEERING_JOINT}]"),
+        },
+        "reference": {"beta_rad": source(topics.GROUND_TRUTH_SIDESLIP, "data")},
+    }
 
 
 class TopicMapError(ValueError):

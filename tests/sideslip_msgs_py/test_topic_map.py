@@ -178,3 +178,31 @@ def test_a_reference_off_the_cg_needs_the_yaw_rate() -> None:
     reference = {**TOPIC_MAP["reference"], "position_m": [1.0, 0.0]}
     with pytest.raises(TopicMapError, match="position_m needs the yaw_rate_radps channel"):
         TopicMap.from_dict({**TOPIC_MAP, "channels": channels, "reference": reference})
+
+
+def test_the_contract_map_reads_our_own_bags_as_read_bag_does(tmp_path: Path) -> None:
+    # The map sideslip-imu-scale writes for our topics: the same samples as without it,
+    # and the types the node subscribes with.
+    from sideslip_msgs_py import topics
+    from sideslip_msgs_py.bag import read_bag
+    from sideslip_msgs_py.topic_map import contract_topic_map
+    from sideslip_sim.generate import generate
+    from sideslip_sim.maneuvers import Maneuver
+    from sideslip_sim.presets import VehicleRun
+    from sideslip_sim.vehicle import load_vehicle
+
+    drive = Maneuver("sine", "sine_steer", 3.0, 60.0, 0.0, stl_amplitude_m=0.04)
+    generate([VehicleRun(load_vehicle("compact_rwd"), drive)], tmp_path, progress=False)
+    contract_map = TopicMap.from_dict(contract_topic_map())
+    assert contract_map.input_types() == {
+        t: topics.TOPIC_TYPES[t] for t in (topics.IMU, topics.TWIST, topics.STEERING)
+    }
+    ours, mapped = (
+        read_bag(tmp_path / "sine").samples,
+        read_mapped_bag(tmp_path / "sine", contract_map),
+    )
+    np.testing.assert_array_equal(mapped.samples.stamp_ns, ours.stamp_ns)
+    for name in ("x_v_mps", "y_v_mps", "x_a_mps2", "y_a_mps2", "yaw_rate_radps", "stl_m"):
+        np.testing.assert_allclose(getattr(mapped.samples, name), getattr(ours, name), atol=1e-12)
+    np.testing.assert_allclose(mapped.samples.beta_rad(), ours.beta_rad(), atol=1e-12)
+    assert contract_topic_map() is not contract_topic_map()  # a fresh mapping each time

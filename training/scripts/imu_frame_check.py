@@ -14,12 +14,16 @@ gradient), so without an attitude source the best a topic map can do is a scale,
   a level IMU up to the steady-state terms;
 - ``checked``: the scale the data report's accelerometer check gives for the car's
   drives with their reference (:mod:`sideslip_training.accelerometer_check`), for an
-  owner with labelled recordings.
+  owner with labelled recordings;
+- ``self-calibrated``: scale and bias from the car's own drives without a reference,
+  from the integrated kinematics (:mod:`sideslip_training.accelerometer_scale`, what
+  ``sideslip-imu-scale`` writes into a topic map).
 
 ``--variants`` scores some of them only (``level`` among them or not).
 
 ``--scales S ...`` scores instead the level IMU's drives with Y_a multiplied by each S
-(an accelerometer's scale error, or a κ taken out wrongly): how precise Y_a must be.
+(an accelerometer's scale error, or a κ taken out wrongly): how precise Y_a must be;
+``--self-calibrate`` adds each S's drives with the self-calibrated scale and bias on top.
 
 Every car is scored with its true ``ukf`` file, the models given and the UKF, through a
 topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled MAE
@@ -43,17 +47,20 @@ import argparse
 import json
 import sys
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import yaml
 from scipy.signal import butter, sosfiltfilt
 
-from sideslip_msgs_py import topics
 from sideslip_msgs_py.bag import read_bag
+from sideslip_msgs_py.topic_map import contract_topic_map
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.accelerometer_check import check_accelerometer
+from sideslip_training.accelerometer_scale import estimate_scale
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.init_model import resolve
@@ -62,17 +69,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import VAL_CARS, VAL_SEED
 from held_out_fit import description, pooled_mae, write_true_ukf
 
-CONTRACT_MAP = {
-    "channels": {
-        "x_a_mps2": {"topic": topics.IMU, "field": "linear_acceleration.x"},
-        "y_a_mps2": {"topic": topics.IMU, "field": "linear_acceleration.y"},
-        "yaw_rate_radps": {"topic": topics.IMU, "field": "angular_velocity.z"},
-        "x_v_mps": {"topic": topics.TWIST, "field": "twist.linear.x"},
-        "y_v_mps": {"topic": topics.TWIST, "field": "twist.linear.y"},
-        "stl_m": {"topic": topics.STEERING, "field": f"position[{topics.STEERING_JOINT}]"},
-    },
-    "reference": {"beta_rad": {"topic": topics.GROUND_TRUTH_SIDESLIP, "field": "data"}},
-}
+CONTRACT_MAP = contract_topic_map()
 """The contract's own topics read through a topic map, so that a variant can scale a
 channel or name the IMU's mounting."""
 
@@ -117,6 +114,21 @@ def gravity_share_own(bags: list[Path]) -> float:
     return float(np.dot(x, y) / np.dot(x, x) - 1.0)
 
 
+def _self_calibrated(runs: list, recorded_scale: float, row: dict, key: str) -> dict:
+    """The contract map with Y_a × ``recorded_scale`` and the scale and bias that
+    :func:`estimate_scale` measures on ``runs`` (the drives as so recorded) taken out;
+    the estimate is kept in ``row["self_calibration"][key]``."""
+    got = estimate_scale(runs, fit_bias=True)
+    if got is None:
+        raise SystemExit(f"{key}: too little cornering to self-calibrate")
+    fix, offset = got.channel_fix
+    row.setdefault("self_calibration", {})[key] = {
+        "scale": got.scale, "spread": got.spread, "bias_mps2": got.bias_mps2}  # fmt: skip
+    spec = json.loads(json.dumps(CONTRACT_MAP))
+    spec["channels"]["y_a_mps2"].update(scale=recorded_scale * fix, offset=offset)
+    return spec
+
+
 def _score(
     folder: Path,
     variant: str,
@@ -149,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", nargs="+", default=["fleet_ukf_ensemble"])
     p.add_argument("--variants", nargs="+", help="score only these variants")
     p.add_argument("--scales", type=float, nargs="+", help="Y_a scale errors to score (see module)")
+    p.add_argument("--self-calibrate", action="store_true",
+                   help="with --scales: also each scale error self-calibrated")  # fmt: skip
     p.add_argument("--held-out", action="store_true",
                    help="the folders hold the held-out cars' runs (scored once)")  # fmt: skip
     p.add_argument("--out", type=Path, required=True)
@@ -171,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.scales is not None:
         other = bags_by_car(args.level)
         variants = tuple(f"level, Y_a × {k:g}" for k in args.scales)
+        if args.self_calibrate:
+            variants += tuple(f"level, Y_a × {k:g}, self-calibrated" for k in args.scales)
     elif args.lever_arm is None:
         cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
         typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
@@ -179,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
         summary = {"typical_kappa": typical, "calibration_cars": typical_cars}
         other = bags_by_car(args.body)
         variants = ("level", "body", "body, typical scale", "body, own scale",
-                    "body, checked scale")  # fmt: skip
+                    "body, checked scale", "body, self-calibrated")  # fmt: skip
     else:
         other = bags_by_car(Path(args.lever_arm[0]))
         position = [float(args.lever_arm[1]), float(args.lever_arm[2])]
@@ -207,6 +223,16 @@ def main(argv: list[str] | None = None) -> int:
                 spec = json.loads(json.dumps(CONTRACT_MAP))
                 spec["channels"]["y_a_mps2"]["scale"] = k
                 plans.append((f"level, Y_a × {k:g}", level[car], spec))
+            if args.self_calibrate:
+                runs = load_runs(level[car])[0]
+                for k in args.scales:
+                    # The scale error as the drives would record it, then measured back.
+                    scaled = [
+                        SimpleNamespace(samples=replace(r.samples, y_a_mps2=r.samples.y_a_mps2 * k))
+                        for r in runs
+                    ]
+                    spec = _self_calibrated(scaled, k, row, f"× {k:g}")
+                    plans.append((f"level, Y_a × {k:g}, self-calibrated", level[car], spec))
         elif args.lever_arm is None:
             check = check_accelerometer(load_runs(other[car])[0])
             kappa = {"true": gravity_share_true(level[car], other[car]),
@@ -223,6 +249,9 @@ def main(argv: list[str] | None = None) -> int:
                 spec = json.loads(json.dumps(CONTRACT_MAP))
                 spec["channels"]["y_a_mps2"]["scale"] = scale
                 plans.append((variant, other[car], spec))
+            if not args.variants or "body, self-calibrated" in args.variants:
+                spec = _self_calibrated(load_runs(other[car])[0], 1.0, row, "body")
+                plans.append(("body, self-calibrated", other[car], spec))
         else:
             plans.append(("away", other[car], CONTRACT_MAP))
             plans.append(("away, moved to the CG", other[car],

@@ -49,6 +49,7 @@ from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
 from .accelerometer_check import check_accelerometer
+from .accelerometer_scale import estimate_scale
 from .bag_paths import DatasetError, find_bags
 from .dataset_report import DatasetReport
 
@@ -323,6 +324,11 @@ def load_runs(
     accelerometer = check_accelerometer(runs) if require_truth else None
     if accelerometer is not None and accelerometer.warning:
         lines.append(accelerometer.warning)
+    # Without a reference (or with too little of it) the speed and yaw rate still
+    # measure Y_a's scale: said the same way, with the topic map's fix.
+    accelerometer_scale = estimate_scale(runs, fit_bias=True) if accelerometer is None else None
+    if accelerometer_scale is not None and accelerometer_scale.warning:
+        lines.append(accelerometer_scale.warning)
     report = DatasetReport(
         bags_found=len(bags),
         bags_used=len({r.bag for r in runs}),
@@ -335,6 +341,7 @@ def load_runs(
         nonfinite_samples=nonfinite,
         lines=tuple(lines),
         accelerometer=accelerometer,
+        accelerometer_scale=accelerometer_scale,
     )
     if not runs:
         reasons = "; ".join(refused)

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .accelerometer_check import AccelerometerCheck
+from .accelerometer_scale import AccelerometerScale
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,9 @@ class DatasetReport:
         lines: one line per event, each naming its bag.
         accelerometer: the recorded Y_a against the reference's lateral acceleration
             (:mod:`.accelerometer_check`; None without a reference or enough cornering).
+        accelerometer_scale: Y_a's scale and bias from the speed and yaw rate alone
+            (:mod:`.accelerometer_scale`), where ``accelerometer`` is None; None with
+            too little cornering.
     """
 
     bags_found: int
@@ -41,6 +45,7 @@ class DatasetReport:
     nonfinite_samples: int
     lines: tuple[str, ...]
     accelerometer: AccelerometerCheck | None = None
+    accelerometer_scale: AccelerometerScale | None = None
 
     def counts(self) -> dict[str, int | float]:
         """The counts as a JSON-ready dict (for run folders and model metadata)."""
