@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_sim.generate import generate
@@ -20,10 +22,10 @@ from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import VehicleRun
 from sideslip_sim.vehicle import load_vehicle
 from sideslip_training.accelerometer_check import check_accelerometer
-from sideslip_training.accelerometer_scale import estimate_scale
+from sideslip_training.accelerometer_scale import AccelerometerScale, estimate_scale
 from sideslip_training.cli_errors import EXIT_BAD_INPUT
 from sideslip_training.dataset import load_runs
-from sideslip_training.imu_scale_cli import main
+from sideslip_training.imu_scale_cli import fixed_topic_map, main
 from tests.foreign_bag import TOPIC_MAP, Truth, make_truth, write_foreign_bag
 
 SCALE, BIAS = 1.08, 0.15  # what the foreign IMU puts on a_y [-, m/s²]
@@ -136,3 +138,23 @@ def test_bad_input_is_one_line_and_exit_2(
     assert main(filled) == EXIT_BAD_INPUT
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sideslip-imu-scale: error:") and says in err[0]
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    s0=st.floats(0.01, 20.0),
+    o0=st.floats(-1.0, 1.0),
+    scale=st.floats(0.8, 1.3),
+    bias=st.floats(-0.5, 0.5),
+    value=st.floats(-20.0, 20.0),
+)
+def test_the_fix_composes_with_the_maps_own_scale_and_offset(
+    s0: float, o0: float, scale: float, bias: float, value: float
+) -> None:
+    spec = {"channels": {"y_a_mps2": {"topic": "/imu", "field": "a.y", "scale": s0, "offset": o0}}}
+    found = AccelerometerScale(scale, 0.001, bias, 5, 1000, 60.0, 0.5)
+    fixed = fixed_topic_map(spec, found)["channels"]["y_a_mps2"]
+    # The channel as the old map reads it, with the measured scale and bias taken out.
+    want = ((value * s0 + o0) - bias) / scale
+    assert value * fixed["scale"] + fixed["offset"] == pytest.approx(want, rel=1e-5, abs=1e-5)
+    assert spec["channels"]["y_a_mps2"]["scale"] == s0  # the input map is not changed
