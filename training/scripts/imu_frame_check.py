@@ -23,7 +23,9 @@ gradient), so without an attitude source the best a topic map can do is a scale,
 
 ``--scales S ...`` scores instead the level IMU's drives with Y_a multiplied by each S
 (an accelerometer's scale error, or a κ taken out wrongly): how precise Y_a must be;
-``--self-calibrate`` adds each S's drives with the self-calibrated scale and bias on top.
+``--self-calibrate`` adds each S's drives with the self-calibrated scale and bias on top;
+``--scaled-channel x_v_mps`` puts the scale error on X_v instead (a wheel-speed scale:
+tyre wear and pressure).
 
 Every car is scored with its true ``ukf`` file, the models given and the UKF, through a
 topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled MAE
@@ -69,6 +71,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import VAL_CARS, VAL_SEED
 from held_out_fit import description, pooled_mae, write_true_ukf
 
+SCALED = {"y_a_mps2": "Y_a", "x_v_mps": "X_v"}
+"""Channels ``--scales`` can put a scale error on, and their labels."""
 CONTRACT_MAP = contract_topic_map()
 """The contract's own topics read through a topic map, so that a variant can scale a
 channel or name the IMU's mounting."""
@@ -114,18 +118,19 @@ def gravity_share_own(bags: list[Path]) -> float:
     return float(np.dot(x, y) / np.dot(x, x) - 1.0)
 
 
-def _self_calibrated(runs: list, recorded_scale: float, row: dict, key: str) -> dict:
-    """The contract map with Y_a × ``recorded_scale`` and the scale and bias that
-    :func:`estimate_scale` measures on ``runs`` (the drives as so recorded) taken out;
-    the estimate is kept in ``row["self_calibration"][key]``."""
+def _self_calibrated(runs: list, base: dict, row: dict, key: str) -> dict:
+    """The topic map ``base`` with the scale and bias that :func:`estimate_scale`
+    measures on ``runs`` (the drives as ``base`` reads them) taken out of its Y_a; the
+    estimate is kept in ``row["self_calibration"][key]``."""
     got = estimate_scale(runs, fit_bias=True)
     if got is None:
         raise SystemExit(f"{key}: too little cornering to self-calibrate")
     fix, offset = got.channel_fix
     row.setdefault("self_calibration", {})[key] = {
         "scale": got.scale, "spread": got.spread, "bias_mps2": got.bias_mps2}  # fmt: skip
-    spec = json.loads(json.dumps(CONTRACT_MAP))
-    spec["channels"]["y_a_mps2"].update(scale=recorded_scale * fix, offset=offset)
+    spec = json.loads(json.dumps(base))
+    y_a = spec["channels"]["y_a_mps2"]
+    y_a.update(scale=y_a.get("scale", 1.0) * fix, offset=y_a.get("offset", 0.0) * fix + offset)
     return spec
 
 
@@ -161,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", nargs="+", default=["fleet_ukf_ensemble"])
     p.add_argument("--variants", nargs="+", help="score only these variants")
     p.add_argument("--scales", type=float, nargs="+", help="Y_a scale errors to score (see module)")
+    p.add_argument("--scaled-channel", choices=tuple(SCALED), default="y_a_mps2",
+                   help="the channel --scales scales (X_v: a wheel-speed scale error)")  # fmt: skip
     p.add_argument("--self-calibrate", action="store_true",
                    help="with --scales: also each scale error self-calibrated")  # fmt: skip
     p.add_argument("--held-out", action="store_true",
@@ -184,9 +191,10 @@ def main(argv: list[str] | None = None) -> int:
     summary: dict[str, object] = {}
     if args.scales is not None:
         other = bags_by_car(args.level)
-        variants = tuple(f"level, Y_a × {k:g}" for k in args.scales)
+        label = SCALED[args.scaled_channel]
+        variants = tuple(f"level, {label} × {k:g}" for k in args.scales)
         if args.self_calibrate:
-            variants += tuple(f"level, Y_a × {k:g}, self-calibrated" for k in args.scales)
+            variants += tuple(f"level, {label} × {k:g}, self-calibrated" for k in args.scales)
     elif args.lever_arm is None:
         cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
         typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
@@ -219,20 +227,20 @@ def main(argv: list[str] | None = None) -> int:
         plans: list[tuple[str, list[Path], dict]] = [("level", level[car], CONTRACT_MAP)]
         if args.scales is not None:
             plans = []
+            name, label = args.scaled_channel, SCALED[args.scaled_channel]
+            runs = load_runs(level[car])[0] if args.self_calibrate else []
             for k in args.scales:
                 spec = json.loads(json.dumps(CONTRACT_MAP))
-                spec["channels"]["y_a_mps2"]["scale"] = k
-                plans.append((f"level, Y_a × {k:g}", level[car], spec))
-            if args.self_calibrate:
-                runs = load_runs(level[car])[0]
-                for k in args.scales:
+                spec["channels"][name]["scale"] = k
+                plans.append((f"level, {label} × {k:g}", level[car], spec))
+                if args.self_calibrate:
                     # The scale error as the drives would record it, then measured back.
-                    scaled = [
-                        SimpleNamespace(samples=replace(r.samples, y_a_mps2=r.samples.y_a_mps2 * k))
-                        for r in runs
-                    ]
-                    spec = _self_calibrated(scaled, k, row, f"× {k:g}")
-                    plans.append((f"level, Y_a × {k:g}, self-calibrated", level[car], spec))
+                    scaled = []
+                    for r in runs:
+                        column = getattr(r.samples, name) * k
+                        scaled.append(SimpleNamespace(samples=replace(r.samples, **{name: column})))
+                    fixed = _self_calibrated(scaled, spec, row, f"{label} × {k:g}")
+                    plans.append((f"level, {label} × {k:g}, self-calibrated", level[car], fixed))
         elif args.lever_arm is None:
             check = check_accelerometer(load_runs(other[car])[0])
             kappa = {"true": gravity_share_true(level[car], other[car]),
@@ -250,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
                 spec["channels"]["y_a_mps2"]["scale"] = scale
                 plans.append((variant, other[car], spec))
             if not args.variants or "body, self-calibrated" in args.variants:
-                spec = _self_calibrated(load_runs(other[car])[0], 1.0, row, "body")
+                spec = _self_calibrated(load_runs(other[car])[0], CONTRACT_MAP, row, "body")
                 plans.append(("body, self-calibrated", other[car], spec))
         else:
             plans.append(("away", other[car], CONTRACT_MAP))
