@@ -21,7 +21,6 @@ from sideslip_sim.vehicle import load_vehicle
 from sideslip_training.accelerometer_check import check_accelerometer
 from sideslip_training.accelerometer_scale import (
     CHUNK_S,
-    MIN_CHUNKS,
     SCALE_TOLERANCE,
     AccelerometerScale,
     estimate_scale,
@@ -104,9 +103,33 @@ def test_the_spread_is_a_jackknife_over_chunks(drives: dict[str, list[Run]]) -> 
     assert got is not None and got.chunks == len(DRIVES)
     # Four drives make a rough jackknife (about 1 %), still well inside the 3 % warning.
     assert 0.0 < got.spread < SCALE_TOLERANCE
-    # Fewer chunks than MIN_CHUNKS give an estimate without a spread.
-    few = estimate_scale(drives["level"][: MIN_CHUNKS - 1])
-    assert few is None or np.isnan(few.spread)
+
+
+def test_fewer_chunks_than_a_jackknife_needs_give_no_spread(
+    drives: dict[str, list[Run]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sideslip_training.accelerometer_scale as accelerometer_scale
+
+    monkeypatch.setattr(accelerometer_scale, "MIN_CHUNKS", len(DRIVES) + 1)
+    got = estimate_scale(drives["level"], fit_bias=True)
+    assert got is not None and got.chunks < accelerometer_scale.MIN_CHUNKS
+    assert np.isnan(got.spread) and got.scale == pytest.approx(1.0, abs=0.005)
+
+
+def test_a_gap_inside_a_run_is_not_integrated_over(drives: dict[str, list[Run]]) -> None:
+    # The second half of every drive a minute later (a logger paused): the same estimate.
+    gapped = []
+    for r in drives["level"]:
+        stamps = r.samples.stamp_ns.copy()
+        stamps[stamps.size // 2 :] += 60 * 10**9
+        gapped.append(SimpleNamespace(samples=dataclasses.replace(r.samples, stamp_ns=stamps)))
+    whole, cut = (
+        estimate_scale(drives["level"], fit_bias=True),
+        estimate_scale(gapped, fit_bias=True),
+    )
+    assert whole is not None and cut is not None
+    assert cut.scale == pytest.approx(1.0, abs=0.01)
+    assert cut.cornering_s == pytest.approx(whole.cornering_s, rel=0.02)  # not the gap
 
 
 def test_holes_in_a_run_end_a_stretch_instead_of_being_integrated(

@@ -31,10 +31,10 @@ from tests.foreign_bag import TOPIC_MAP, Truth, make_truth, write_foreign_bag
 SCALE, BIAS = 1.08, 0.15  # what the foreign IMU puts on a_y [-, m/s²]
 
 
-def _turning(seed: int) -> Truth:
+def _turning(seed: int, rate_hz: float = 100.0) -> Truth:
     """make_truth's slalom with turns laid over it: a slalom at one frequency alone cannot
     tell the scale from the lateral velocity (its heading change is a sinusoid too)."""
-    truth = make_truth(2500, seed=seed)
+    truth = make_truth(round(25 * rate_hz), rate_hz=rate_hz, seed=seed)
     t = (truth.stamp_ns - truth.stamp_ns[0]) * 1e-9
     w = 2 * math.pi * 0.04  # a turn each way every 25 s
     turn = 0.15 * np.sin(w * t + seed)
@@ -43,7 +43,7 @@ def _turning(seed: int) -> Truth:
     y_a = truth.y_a + x_v * turn + 0.01 * w * np.cos(w * t + seed) * x_v
     return dataclasses.replace(
         truth, r=truth.r + turn, y_v=truth.y_v + beta_turn * x_v, y_a=y_a,
-        yaw=truth.yaw + np.cumsum(turn) / 100.0,
+        yaw=truth.yaw + np.cumsum(turn) / rate_hz,
     )  # fmt: skip
 
 
@@ -158,3 +158,70 @@ def test_the_fix_composes_with_the_maps_own_scale_and_offset(
     want = ((value * s0 + o0) - bias) / scale
     assert value * fixed["scale"] + fixed["offset"] == pytest.approx(want, rel=1e-5, abs=1e-5)
     assert spec["channels"]["y_a_mps2"]["scale"] == s0  # the input map is not changed
+
+
+def test_a_50_hz_imu_with_jittery_stamps_and_a_gap_is_measured(tmp_path: Path) -> None:
+    # Stamps 20 ms ± 3 ms apart and a 2-s hole: the runs hold together (split at 0.5 s)
+    # and the estimate cuts its own stretches at the hole instead of integrating over it.
+    rng = np.random.default_rng(5)
+    for seed in range(3):
+        truth = _turning(seed, rate_hz=50.0)
+        stamps = truth.stamp_ns + rng.integers(-3_000_000, 3_000_000, truth.stamp_ns.size)
+        stamps[truth.stamp_ns.size // 2 :] += 2_000_000_000
+        wrong = dataclasses.replace(truth, stamp_ns=stamps, y_a=truth.y_a * SCALE + BIAS)
+        write_foreign_bag(tmp_path / "bags" / f"drive{seed}", wrong)
+    (tmp_path / "theirs.yaml").write_text(yaml.safe_dump(TOPIC_MAP), encoding="utf-8")
+    report = tmp_path / "scale.json"
+    code = main(["--data", str(tmp_path / "bags"), "--topic-map", str(tmp_path / "theirs.yaml"),
+                 "--json", str(report)])  # fmt: skip
+    assert code == 0
+    got = json.loads(report.read_text())
+    assert got["scale"] == pytest.approx(SCALE, abs=0.015)
+    assert got["bias_mps2"] == pytest.approx(BIAS, abs=0.04)
+
+
+def test_no_bias_fits_the_scale_alone_and_the_json_is_valid_without_a_spread(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sideslip_training.accelerometer_scale as accelerometer_scale
+
+    for seed in range(3):  # a scale error alone
+        truth = _turning(seed)
+        write_foreign_bag(
+            tmp_path / "bags" / f"d{seed}", dataclasses.replace(truth, y_a=truth.y_a * SCALE)
+        )
+    (tmp_path / "theirs.yaml").write_text(yaml.safe_dump(TOPIC_MAP), encoding="utf-8")
+    # Fewer chunks than needed for a jackknife: no spread, written as null (valid JSON).
+    monkeypatch.setattr(accelerometer_scale, "MIN_CHUNKS", 10)
+    report = tmp_path / "scale.json"
+    code = main(["--data", str(tmp_path / "bags"), "--topic-map", str(tmp_path / "theirs.yaml"),
+                 "--no-bias", "--json", str(report)])  # fmt: skip
+    assert code == 0
+    text = report.read_text()
+    assert "NaN" not in text
+    got = json.loads(text)
+    assert got["bias_mps2"] == 0.0 and got["scale_spread"] is None and got["chunks"] == 3
+    assert got["scale"] == pytest.approx(SCALE, abs=0.01)
+
+
+def test_a_map_without_the_channels_it_reads_is_refused_naming_them(
+    foreign: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = json.loads(json.dumps(TOPIC_MAP))
+    del spec["channels"]["yaw_rate_radps"]
+    bad = tmp_path / "no_yaw_rate.yaml"
+    bad.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    assert main(["--data", str(foreign), "--topic-map", str(bad)]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "maps no yaw_rate_radps" in err[0]
+
+
+def test_an_output_that_cannot_be_written_is_one_line_and_exit_2(
+    foreign: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "file").write_text("x")
+    out = tmp_path / "file" / "map.yaml"  # its folder is a file
+    code = main(["--data", str(foreign), "--topic-map", str(foreign.parent / "theirs.yaml"),
+                 "--write-topic-map", str(out)])  # fmt: skip
+    assert code == EXIT_BAD_INPUT
+    assert capsys.readouterr().err.strip().splitlines()[-1].startswith("sideslip-imu-scale: error:")

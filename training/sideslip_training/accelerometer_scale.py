@@ -44,7 +44,12 @@ import numpy as np
 import numpy.typing as npt
 
 CHUNK_S: Final = 60.0
-"""Longest stretch [s] with one constant c (and one jackknife group)."""
+"""About how long [s] a chunk with one constant c (and one jackknife group) is: a
+stretch is cut into equal chunks of 2/3 to 4/3 of this."""
+MAX_GAP_STEPS: Final = 5.0
+"""A step over this many times the run's median step is a gap: the stretch ends."""
+MIN_ROWS: Final = 30
+"""Stretches and chunks with fewer rows are left out."""
 MIN_SPEED_MPS: Final = 5.0
 """Rows slower than this [m/s] are not fitted (they are still integrated)."""
 MIN_LATERAL_MPS2: Final = 1.0
@@ -76,8 +81,9 @@ class AccelerometerScale:
     scale: s = 1 + κ [-]; spread: its jackknife 1-σ over chunks [-] (NaN with fewer
     than :data:`MIN_CHUNKS`); bias_mps2: b [m/s²] (0 unless fitted); chunks, samples:
     what the fit used; cornering_s: time at |v_x·ψ̇| > :data:`MIN_LATERAL_MPS2` [s];
-    separation: 1 − R² of ∫ v_x ψ̇ dt on the lateral-velocity terms [-], near 0 when
-    the driving cannot tell the scale from the lateral velocity (module docstring).
+    separation: 1 − R² of ∫ v_x ψ̇ dt on the other columns (the lateral-velocity terms
+    and, with a bias, time) [-]; near 0 when the driving cannot tell the scale from
+    them (module docstring).
     """
 
     scale: float
@@ -120,18 +126,29 @@ def _cumulative(y: FloatArray, t: FloatArray) -> FloatArray:
 
 
 def _stretches(runs: Sequence[Any]) -> list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
-    """(t [s], v_x, ψ̇, Y_a) of every finite, strictly increasing stretch of the runs."""
+    """(t [s], v_x, ψ̇, Y_a) of every finite, strictly increasing stretch of the runs
+    without a gap (a step over :data:`MAX_GAP_STEPS` times the run's median step): the
+    integrals and filters must not run across a hole."""
     out = []
     for run in runs:
         s = run.samples
+        if len(s.stamp_ns) < MIN_ROWS:
+            continue
         t = (np.asarray(s.stamp_ns) - s.stamp_ns[0]) * 1e-9
         cols = [np.asarray(c, dtype=float) for c in (s.x_v_mps, s.yaw_rate_radps, s.y_a_mps2)]
         ok = np.isfinite(cols[0]) & np.isfinite(cols[1]) & np.isfinite(cols[2])
-        ok[1:] &= np.diff(t) > 0.0
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
-            if stop - start >= 30:
-                out.append((t[start:stop], *(c[start:stop] for c in cols)))
+        step = np.diff(t)
+        positive = step[step > 0.0]
+        if positive.size == 0:
+            continue
+        # A row after a gap (or a repeated / backward stamp) starts a new stretch.
+        gap = (step <= 0.0) | (step > MAX_GAP_STEPS * np.median(positive))
+        # Stretches: runs of finite rows, cut before every row after a gap.
+        label = np.cumsum(np.concatenate([[True], gap]) | ~ok)
+        for k in np.unique(label[ok]):
+            rows = np.flatnonzero(ok & (label == k))
+            if rows.size >= MIN_ROWS:
+                out.append((t[rows], *(c[rows] for c in cols)))
     return out
 
 
@@ -142,7 +159,7 @@ def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> Accelerome
     groups: list[tuple[FloatArray, FloatArray]] = []  # (XᵀX, Xᵀy) per chunk
     samples, cornering_s = 0, 0.0
     for t, u, r, f_y in _stretches(runs):
-        rate = (t.size - 1) / (t[-1] - t[0])
+        rate = 1.0 / float(np.median(np.diff(t)))
         if rate <= 2.5 * CUTOFF_HZ:
             continue
         # Every column through the same zero-phase low-pass: the identity holds for the
@@ -158,10 +175,14 @@ def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> Accelerome
         # whether it is measured.
         turning = np.abs(_smooth(u * r, rate)) > MIN_LATERAL_MPS2
         cornering_s += float(dt[moving & turning].sum())
-        chunk = np.floor((t - t[0]) / CHUNK_S).astype(int)
+        # Chunks of about CHUNK_S (equal ones, none a short leftover: each is a jackknife
+        # group and should weigh like the others).
+        duration = t[-1] - t[0]
+        n_chunks = max(1, round(duration / CHUNK_S))
+        chunk = np.minimum(np.floor((t - t[0]) / (duration / n_chunks)), n_chunks - 1)
         for k in np.unique(chunk[moving]):
             rows = moving & (chunk == k)
-            if rows.sum() < 30:
+            if rows.sum() < MIN_ROWS:
                 continue
             cols = [i_ur[rows], f_s[rows], r_s[rows]]
             if fit_bias:
@@ -177,7 +198,7 @@ def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> Accelerome
     xtx = sum(g[0] for g in groups)
     xty = sum(g[1] for g in groups)
     try:
-        coef = np.linalg.solve(xtx, xty)
+        coef = np.linalg.solve(xtx, xty)  # (an exactly singular system: no estimate)
         # 1 − R² of ∫ v_x ψ̇ dt on the nuisance columns: how much of the heading change
         # the lateral-velocity terms cannot explain (1/VIF of the scale).
         nuisance = xtx[1:, 1:]

@@ -14,7 +14,10 @@ and bias out, for ``sideslip-train``, ``sideslip-evaluate`` and the estimator no
 Without ``--topic-map`` the bags are read on the contract's topics and the map written
 names them. The estimate is of Y_a as the map reads it (scaled, levelled with an
 attitude, moved to the CG), and the written map composes the fix with the map's own
-``scale`` and ``offset``. Exit 2 with one line for bad input or too little cornering.
+``scale`` and ``offset``. That is exact unless the map also has ``imu.frame: body`` or
+``imu.position_m``: those act after the channel's scale, so the fix scales their
+corrections too (by κ: a second-order error); run the tool again on the written map to
+check it reads 1. Exit 2 with one line for bad input or too little cornering.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +41,9 @@ from .dataset import DatasetError, load_runs
 
 CHANNELS = ("x_v_mps", "y_a_mps2", "yaw_rate_radps")
 """What the estimate reads."""
+MAX_GAP_S = 0.5
+"""Runs are split at longer gaps [s]; shorter ones (a 50-Hz IMU, jittery stamps) are the
+estimate's to handle (:func:`~.accelerometer_scale.estimate_scale` cuts its stretches)."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -79,13 +86,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.topic_map:
             topic_map: TopicMap | None = TopicMap.load(args.topic_map)  # checked, named
             spec = yaml.safe_load(args.topic_map.read_text(encoding="utf-8"))
+            missing = [c for c in CHANNELS if c not in topic_map.channels]
+            if missing:
+                raise CliError(f"{args.topic_map}: maps no {', '.join(missing)} (needed)")
         else:
             spec, topic_map = contract_topic_map(), None
         runs, report = load_runs(
-            args.data, require_truth=False, channels=CHANNELS, topic_map=topic_map
+            args.data,
+            require_truth=False,
+            channels=CHANNELS,
+            topic_map=topic_map,
+            max_gap_s=MAX_GAP_S,
         )
-        print(str(report), file=sys.stderr)
-        found = estimate_scale(runs, fit_bias=not args.no_bias)
+        print(str(report), file=sys.stderr)  # (with the estimate's warning, if any)
+        # The report's own estimate fits the bias; without it, once more.
+        found = estimate_scale(runs) if args.no_bias else report.accelerometer_scale
         if found is None:
             raise CliError(
                 f"too little cornering in {len(runs)} run(s) to measure Y_a's scale: needs "
@@ -93,34 +108,38 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "at one frequency alone cannot tell the scale from the lateral velocity)"
             )
         fixed = fixed_topic_map(spec, found)
+        fix, offset = found.channel_fix
+        spread = "no spread: fewer than 3 chunks" if math.isnan(found.spread) else (
+            f"scale ± {found.spread:.4f} over {found.chunks} chunk(s)")  # fmt: skip
+        print(
+            f"Y_a = {found.scale:.4f} × a_y {found.bias_mps2:+.3f} m/s² ({spread}; "
+            f"{found.cornering_s:.0f} s of cornering)"
+        )
+        print(f"y_a_mps2: scale × {fix:.5f}, offset {offset:+.4f} m/s² on top of the map's own")
+        if args.no_bias and found.warning:
+            print(found.warning, file=sys.stderr)
+        if args.write_topic_map:
+            args.write_topic_map.parent.mkdir(parents=True, exist_ok=True)
+            text = yaml.safe_dump(fixed, sort_keys=False)
+            args.write_topic_map.write_text(text, encoding="utf-8")
+            print(f"wrote {args.write_topic_map}")
+        if args.json:
+            body = {
+                "scale": found.scale,
+                "scale_spread": None if math.isnan(found.spread) else found.spread,
+                "bias_mps2": found.bias_mps2,
+                "chunks": found.chunks,
+                "samples": found.samples,
+                "cornering_s": found.cornering_s,
+                "separation": found.separation,
+                "y_a_mps2_fix": {"scale": fix, "offset": offset},
+                "data": [str(d) for d in args.data],
+            }
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
     except (CliError, DatasetError, TopicMapError, OSError, yaml.YAMLError) as err:
         print(f"sideslip-imu-scale: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    fix, offset = found.channel_fix
-    print(
-        f"Y_a = {found.scale:.4f} × a_y {found.bias_mps2:+.3f} m/s² (scale ± {found.spread:.4f} "
-        f"over {found.chunks} stretch(es); {found.cornering_s:.0f} s of cornering)"
-    )
-    print(f"y_a_mps2: scale × {fix:.5f}, offset {offset:+.4f} m/s² on top of the map's own")
-    if found.warning:
-        print(found.warning, file=sys.stderr)
-    if args.write_topic_map:
-        args.write_topic_map.parent.mkdir(parents=True, exist_ok=True)
-        args.write_topic_map.write_text(yaml.safe_dump(fixed, sort_keys=False), encoding="utf-8")
-        print(f"wrote {args.write_topic_map}")
-    if args.json:
-        body = {
-            "scale": found.scale,
-            "scale_spread": found.spread,
-            "bias_mps2": found.bias_mps2,
-            "chunks": found.chunks,
-            "samples": found.samples,
-            "cornering_s": found.cornering_s,
-            "y_a_mps2_fix": {"scale": fix, "offset": offset},
-            "data": [str(d) for d in args.data],
-        }
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
     return 0
 
 
