@@ -25,7 +25,8 @@ gradient), so without an attitude source the best a topic map can do is a scale,
 (an accelerometer's scale error, or a κ taken out wrongly): how precise Y_a must be;
 ``--self-calibrate`` adds each S's drives with the self-calibrated scale and bias on top;
 ``--scaled-channel x_v_mps`` puts the scale error on X_v instead (a wheel-speed scale:
-tyre wear and pressure).
+tyre wear and pressure); ``--offsets B ...`` puts offsets [m/s²] on the channel instead
+(a bias: on Y_a, g·sin of a roll error in the attitude or the mounting).
 
 Every car is scored with its true ``ukf`` file, the models given and the UKF, through a
 topic map over the contract topics (scale 1 for ``level`` and ``body``), pooled MAE
@@ -166,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", nargs="+", default=["fleet_ukf_ensemble"])
     p.add_argument("--variants", nargs="+", help="score only these variants")
     p.add_argument("--scales", type=float, nargs="+", help="Y_a scale errors to score (see module)")
+    p.add_argument("--offsets", type=float, nargs="+",
+                   help="offsets [m/s²] to put on the channel instead (a bias)")  # fmt: skip
     p.add_argument("--scaled-channel", choices=tuple(SCALED), default="y_a_mps2",
                    help="the channel --scales scales (X_v: a wheel-speed scale error)")  # fmt: skip
     p.add_argument("--self-calibrate", action="store_true",
@@ -177,9 +180,12 @@ def main(argv: list[str] | None = None) -> int:
     if (
         args.lever_arm is None
         and args.scales is None
+        and args.offsets is None
         and (args.body is None or args.calibration is None)
     ):
-        p.error("--body and --calibration are needed without --lever-arm or --scales")
+        p.error("--body and --calibration are needed without --lever-arm, --scales, --offsets")
+    errors = [(f"× {k:g}", k, 0.0) for k in args.scales or ()]
+    errors += [(f"{b:+g}", 1.0, b) for b in args.offsets or ()]  # [m/s²]
     fleet = (
         held_out_vehicles()
         if args.held_out
@@ -189,12 +195,12 @@ def main(argv: list[str] | None = None) -> int:
         }
     )
     summary: dict[str, object] = {}
-    if args.scales is not None:
+    if errors:
         other = bags_by_car(args.level)
         label = SCALED[args.scaled_channel]
-        variants = tuple(f"level, {label} × {k:g}" for k in args.scales)
+        variants = tuple(f"level, {label} {tag}" for tag, _, _ in errors)
         if args.self_calibrate:
-            variants += tuple(f"level, {label} × {k:g}, self-calibrated" for k in args.scales)
+            variants += tuple(f"level, {label} {tag}, self-calibrated" for tag, _, _ in errors)
     elif args.lever_arm is None:
         cal_level, cal_body = (bags_by_car(f) for f in args.calibration)
         typical_cars = {c: gravity_share_true(cal_level[c], cal_body[c]) for c in sorted(cal_level)}
@@ -225,22 +231,22 @@ def main(argv: list[str] | None = None) -> int:
                      "given", "--ukf-params", str(true_file)]  # fmt: skip
         row: dict[str, object] = {}
         plans: list[tuple[str, list[Path], dict]] = [("level", level[car], CONTRACT_MAP)]
-        if args.scales is not None:
+        if errors:
             plans = []
             name, label = args.scaled_channel, SCALED[args.scaled_channel]
             runs = load_runs(level[car])[0] if args.self_calibrate else []
-            for k in args.scales:
+            for tag, k, b in errors:
                 spec = json.loads(json.dumps(CONTRACT_MAP))
-                spec["channels"][name]["scale"] = k
-                plans.append((f"level, {label} × {k:g}", level[car], spec))
+                spec["channels"][name].update(scale=k, offset=b)
+                plans.append((f"level, {label} {tag}", level[car], spec))
                 if args.self_calibrate:
-                    # The scale error as the drives would record it, then measured back.
+                    # The error as the drives would record it, then measured back.
                     scaled = []
                     for r in runs:
-                        column = getattr(r.samples, name) * k
+                        column = getattr(r.samples, name) * k + b
                         scaled.append(SimpleNamespace(samples=replace(r.samples, **{name: column})))
-                    fixed = _self_calibrated(scaled, spec, row, f"{label} × {k:g}")
-                    plans.append((f"level, {label} × {k:g}, self-calibrated", level[car], fixed))
+                    fixed = _self_calibrated(scaled, spec, row, f"{label} {tag}")
+                    plans.append((f"level, {label} {tag}, self-calibrated", level[car], fixed))
         elif args.lever_arm is None:
             check = check_accelerometer(load_runs(other[car])[0])
             kappa = {"true": gravity_share_true(level[car], other[car]),
