@@ -13,18 +13,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sideslip_estimator.accelerometer_scale import (
+    CHUNK_S,
+    SCALE_TOLERANCE,
+    AccelerometerScale,
+    estimate_scale,
+)
 from sideslip_sim.generate import generate
 from sideslip_sim.imu_mounting import ImuMounting
 from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import VehicleRun
 from sideslip_sim.vehicle import load_vehicle
 from sideslip_training.accelerometer_check import check_accelerometer
-from sideslip_training.accelerometer_scale import (
-    CHUNK_S,
-    SCALE_TOLERANCE,
-    AccelerometerScale,
-    estimate_scale,
-)
 from sideslip_training.dataset import Run, load_runs
 
 # Two cars' worth of ordinary corners: both directions, two roads, ~50 s of driving.
@@ -108,7 +108,7 @@ def test_the_spread_is_a_jackknife_over_chunks(drives: dict[str, list[Run]]) -> 
 def test_fewer_chunks_than_a_jackknife_needs_give_no_spread(
     drives: dict[str, list[Run]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sideslip_training.accelerometer_scale as accelerometer_scale
+    import sideslip_estimator.accelerometer_scale as accelerometer_scale
 
     monkeypatch.setattr(accelerometer_scale, "MIN_CHUNKS", len(DRIVES) + 1)
     got = estimate_scale(drives["level"], fit_bias=True)

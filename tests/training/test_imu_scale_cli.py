@@ -15,6 +15,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sideslip_estimator.accelerometer_scale import AccelerometerScale, estimate_scale
 from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_sim.generate import generate
 from sideslip_sim.imu_mounting import ImuMounting
@@ -22,7 +23,6 @@ from sideslip_sim.maneuvers import Maneuver
 from sideslip_sim.presets import VehicleRun
 from sideslip_sim.vehicle import load_vehicle
 from sideslip_training.accelerometer_check import check_accelerometer
-from sideslip_training.accelerometer_scale import AccelerometerScale, estimate_scale
 from sideslip_training.cli_errors import EXIT_BAD_INPUT
 from sideslip_training.dataset import load_runs
 from sideslip_training.imu_scale_cli import fixed_topic_map, main
@@ -183,7 +183,7 @@ def test_a_50_hz_imu_with_jittery_stamps_and_a_gap_is_measured(tmp_path: Path) -
 def test_no_bias_fits_the_scale_alone_and_the_json_is_valid_without_a_spread(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sideslip_training.accelerometer_scale as accelerometer_scale
+    import sideslip_estimator.accelerometer_scale as accelerometer_scale
 
     for seed in range(3):  # a scale error alone
         truth = _turning(seed)

@@ -16,7 +16,7 @@ gradient), so without an attitude source the best a topic map can do is a scale,
   drives with their reference (:mod:`sideslip_training.accelerometer_check`), for an
   owner with labelled recordings;
 - ``self-calibrated``: scale and bias from the car's own drives without a reference,
-  from the integrated kinematics (:mod:`sideslip_training.accelerometer_scale`, what
+  from the integrated kinematics (:mod:`sideslip_estimator.accelerometer_scale`, what
   ``sideslip-imu-scale`` writes into a topic map).
 
 ``--variants`` scores some of them only (``level`` among them or not).
@@ -58,12 +58,12 @@ import numpy as np
 import yaml
 from scipy.signal import butter, sosfiltfilt
 
+from sideslip_estimator.accelerometer_scale import estimate_scale
 from sideslip_msgs_py.bag import read_bag
 from sideslip_msgs_py.topic_map import contract_topic_map
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
 from sideslip_training.accelerometer_check import check_accelerometer
-from sideslip_training.accelerometer_scale import estimate_scale
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate_cli import main as evaluate_main
 from sideslip_training.init_model import resolve

@@ -41,6 +41,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from sideslip_estimator.accelerometer_scale import estimate_scale
 from sideslip_msgs_py.bag import BagContents, read_bag
 from sideslip_msgs_py.features import CHANNELS, channel_indices
 from sideslip_msgs_py.resample import RateError, to_step
@@ -49,7 +50,6 @@ from sideslip_msgs_py.topic_map import TopicMap
 from sideslip_msgs_py.topic_map_read import read_mapped_bag
 
 from .accelerometer_check import check_accelerometer
-from .accelerometer_scale import estimate_scale
 from .bag_paths import DatasetError, find_bags
 from .dataset_report import DatasetReport
 

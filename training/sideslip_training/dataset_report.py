@@ -6,8 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from sideslip_estimator.accelerometer_scale import AccelerometerScale
+
 from .accelerometer_check import AccelerometerCheck
-from .accelerometer_scale import AccelerometerScale
 
 
 @dataclass(frozen=True)

@@ -33,9 +33,13 @@ from typing import Any
 
 import yaml
 
+from sideslip_estimator.accelerometer_scale import (
+    MIN_CORNERING_S,
+    AccelerometerScale,
+    estimate_scale,
+)
 from sideslip_msgs_py.topic_map import TopicMap, TopicMapError, contract_topic_map
 
-from .accelerometer_scale import MIN_CORNERING_S, AccelerometerScale, estimate_scale
 from .cli_errors import EXIT_BAD_INPUT, CliError
 from .dataset import DatasetError, load_runs
 

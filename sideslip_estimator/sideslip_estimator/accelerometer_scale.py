@@ -35,6 +35,7 @@ implies (it does not include a bias of the method).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -114,10 +115,21 @@ class AccelerometerScale:
         )
 
 
-def _smooth(x: FloatArray, rate_hz: float, cutoff_hz: float = CUTOFF_HZ) -> FloatArray:
-    from scipy.signal import butter, sosfiltfilt
+@functools.lru_cache(maxsize=16)
+def _low_pass(cutoff_hz: float, rate_hz: float) -> FloatArray:
+    """Second-order Butterworth sections (designed once per rate: an online estimate
+    fits a chunk a minute at the same rate)."""
+    from scipy.signal import butter
 
-    return sosfiltfilt(butter(2, cutoff_hz, fs=rate_hz, output="sos"), x)
+    return butter(2, cutoff_hz, fs=rate_hz, output="sos")
+
+
+def _smooth(x: FloatArray, rate_hz: float, cutoff_hz: float = CUTOFF_HZ) -> FloatArray:
+    """``x`` (along its first axis) through a second-order zero-phase low-pass."""
+    from scipy.signal import sosfiltfilt
+
+    # The rate to 1e-6 Hz: the same design for a rate measured with float jitter.
+    return sosfiltfilt(_low_pass(cutoff_hz, round(rate_hz, 6)), x, axis=0)
 
 
 def _cumulative(y: FloatArray, t: FloatArray) -> FloatArray:
@@ -152,51 +164,107 @@ def _stretches(runs: Sequence[Any]) -> list[tuple[FloatArray, FloatArray, FloatA
     return out
 
 
-def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> AccelerometerScale | None:
-    """Y_a's scale (and with ``fit_bias`` its bias) from ``runs`` (records with
-    ``samples``: :class:`~.dataset.Run`); None with too little cornering at speed.
-    No reference is read."""
-    groups: list[tuple[FloatArray, FloatArray]] = []  # (XᵀX, Xᵀy) per chunk
-    samples, cornering_s = 0, 0.0
-    for t, u, r, f_y in _stretches(runs):
-        rate = 1.0 / float(np.median(np.diff(t)))
-        if rate <= 2.5 * CUTOFF_HZ:
+@dataclass(frozen=True)
+class ChunkSums:
+    """One chunk's share of the fit: its centred normal equations XᵀX, Xᵀy (columns
+    ∫ v_x ψ̇ dt, low-passed Y_a, low-passed ψ̇ and, with a bias, t; all low-passed alike),
+    the rows fitted and its cornering [s]. Chunks add up (the fit is their sum), so a
+    chunk is also the unit that an online estimate keeps, forgets and stores."""
+
+    xtx: FloatArray
+    xty: FloatArray
+    samples: int
+    cornering_s: float
+
+
+def stretch_chunks(
+    t: FloatArray,
+    u: FloatArray,
+    r: FloatArray,
+    f_y: FloatArray,
+    chunk: npt.NDArray[np.int64],
+    *,
+    fit_bias: bool,
+) -> list[ChunkSums]:
+    """The :class:`ChunkSums` of one stretch: time t [s] (strictly increasing, no gap),
+    X_v [m/s], ψ̇ [rad/s], Y_a [m/s²], finite; ``chunk`` numbers each row's chunk (< 0:
+    filtered and integrated, not fitted). Empty at a rate too low for the filters."""
+    return chunk_sums(
+        StretchColumns(t, _cumulative(f_y, t), _cumulative(u * r, t), f_y, r, u, u * r),
+        chunk,
+        fit_bias=fit_bias,
+    )
+
+
+@dataclass(frozen=True)
+class StretchColumns:
+    """What the fit reads of a stretch, row by row: t [s], ∫ Y_a dt [m/s], ∫ v_x ψ̇ dt
+    [m/s], Y_a [m/s²], ψ̇ [rad/s], v_x [m/s] and v_x ψ̇ [m/s²]. Any linear filter applied
+    to every column alike keeps the identity the fit rests on (the online estimate
+    block-averages them)."""
+
+    t: FloatArray
+    i_y: FloatArray
+    i_ur: FloatArray
+    f_y: FloatArray
+    r: FloatArray
+    u: FloatArray
+    ur: FloatArray
+
+
+def chunk_sums(
+    cols: StretchColumns, chunk: npt.NDArray[np.int64], *, fit_bias: bool
+) -> list[ChunkSums]:
+    """:func:`stretch_chunks` from the stretch's columns (``chunk`` < 0: the margins an
+    online estimate keeps so that the filters settle, filtered and not fitted)."""
+    t = cols.t
+    rate = 1.0 / float(np.median(np.diff(t)))
+    if rate <= 2.5 * CUTOFF_HZ:
+        return []
+    # Every column through the same zero-phase low-pass: the identity holds for the
+    # filtered signals too, and it keeps the corners while it takes out the fast
+    # steering whose lateral velocity lags a_y and ψ̇ (beyond the nuisance terms).
+    i_y, i_ur, f_s, r_s, t_s = _smooth(
+        np.stack([cols.i_y, cols.i_ur, cols.f_y, cols.r, t - t[0]], axis=1), rate, FIT_CUTOFF_HZ
+    ).T
+    moving = cols.u > MIN_SPEED_MPS
+    dt = np.concatenate([np.diff(t), [0.0]])
+    # Cornering by speed and yaw rate, not by Y_a: what is measured must not decide
+    # whether it is measured.
+    turning = np.abs(_smooth(cols.ur, rate)) > MIN_LATERAL_MPS2
+    out = []
+    for k in np.unique(chunk[moving & (chunk >= 0)]):
+        rows = moving & (chunk == k)
+        if rows.sum() < MIN_ROWS:
             continue
-        # Every column through the same zero-phase low-pass: the identity holds for the
-        # filtered signals too, and it keeps the corners while it takes out the fast
-        # steering whose lateral velocity lags a_y and ψ̇ (beyond the nuisance terms).
-        i_y, i_ur, f_s, r_s, t_s = (
-            _smooth(c, rate, FIT_CUTOFF_HZ)
-            for c in (_cumulative(f_y, t), _cumulative(u * r, t), f_y, r, t - t[0])
-        )
-        moving = u > MIN_SPEED_MPS
-        dt = np.concatenate([np.diff(t), [0.0]])
-        # Cornering by speed and yaw rate, not by Y_a: what is measured must not decide
-        # whether it is measured.
-        turning = np.abs(_smooth(u * r, rate)) > MIN_LATERAL_MPS2
-        cornering_s += float(dt[moving & turning].sum())
-        # Chunks of about CHUNK_S (equal ones, none a short leftover: each is a jackknife
-        # group and should weigh like the others).
-        duration = t[-1] - t[0]
-        n_chunks = max(1, round(duration / CHUNK_S))
-        chunk = np.minimum(np.floor((t - t[0]) / (duration / n_chunks)), n_chunks - 1)
-        for k in np.unique(chunk[moving]):
-            rows = moving & (chunk == k)
-            if rows.sum() < MIN_ROWS:
-                continue
-            cols = [i_ur[rows], f_s[rows], r_s[rows]]
-            if fit_bias:
-                cols.append(t_s[rows])  # the bias's ∫ b dt, filtered alike
-            x = np.stack(cols, axis=1)
-            y = i_y[rows]
-            x = x - x.mean(axis=0)  # the chunk's own constant c
-            y = y - y.mean()
-            groups.append((x.T @ x, x.T @ y))
-            samples += int(rows.sum())
-    if not groups or cornering_s < MIN_CORNERING_S:
+        x_cols = [i_ur[rows], f_s[rows], r_s[rows]]
+        if fit_bias:
+            x_cols.append(t_s[rows])  # the bias's ∫ b dt, filtered alike
+        x = np.stack(x_cols, axis=1)
+        y = i_y[rows]
+        x = x - x.mean(axis=0)  # the chunk's own constant c
+        y = y - y.mean()
+        cornering = float(dt[rows & turning].sum())
+        out.append(ChunkSums(x.T @ x, x.T @ y, int(rows.sum()), cornering))
+    return out
+
+
+def equal_chunks(t: FloatArray) -> npt.NDArray[np.int64]:
+    """Each row's chunk when a stretch is cut into equal chunks of about :data:`CHUNK_S`
+    (none a short leftover: each is a jackknife group and should weigh like the others)."""
+    duration = t[-1] - t[0]
+    n_chunks = max(1, round(duration / CHUNK_S))
+    return np.minimum(np.floor((t - t[0]) / (duration / n_chunks)), n_chunks - 1).astype(np.int64)
+
+
+def solve(chunks: Sequence[ChunkSums], *, fit_bias: bool) -> AccelerometerScale | None:
+    """Scale (and bias) from the chunks' sums; None with too little cornering or driving
+    that cannot separate the scale from the lateral velocity."""
+    cornering_s = float(sum(c.cornering_s for c in chunks))
+    if not chunks or cornering_s < MIN_CORNERING_S:
         return None
-    xtx = sum(g[0] for g in groups)
-    xty = sum(g[1] for g in groups)
+    xtx = sum(c.xtx for c in chunks)
+    xty = sum(c.xty for c in chunks)
     try:
         coef = np.linalg.solve(xtx, xty)  # (an exactly singular system: no estimate)
         # 1 − R² of ∫ v_x ψ̇ dt on the nuisance columns: how much of the heading change
@@ -209,12 +277,33 @@ def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> Accelerome
     if not separation >= MIN_SEPARATION:
         return None
     spread = math.nan
-    if len(groups) >= MIN_CHUNKS:
+    if len(chunks) >= MIN_CHUNKS:
         # Leave one chunk out at a time, from the sums (no refit of the rows).
-        loo = np.array([np.linalg.lstsq(xtx - a, xty - b, rcond=None)[0][0] for a, b in groups])
-        n = len(groups)
+        loo = np.array([_scale_without(xtx - c.xtx, xty - c.xty) for c in chunks])
+        n = len(chunks)
         spread = float(math.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
     bias = float(coef[3]) if fit_bias else 0.0
+    samples = sum(c.samples for c in chunks)
     return AccelerometerScale(
-        float(coef[0]), spread, bias, len(groups), samples, cornering_s, separation
+        float(coef[0]), spread, bias, len(chunks), samples, cornering_s, separation
     )
+
+
+def _scale_without(xtx: FloatArray, xty: FloatArray) -> float:
+    """The scale from the sums less one chunk (least squares where they are singular)."""
+    try:
+        return float(np.linalg.solve(xtx, xty)[0])
+    except np.linalg.LinAlgError:
+        return float(np.linalg.lstsq(xtx, xty, rcond=None)[0][0])
+
+
+def estimate_scale(runs: Sequence[Any], *, fit_bias: bool = False) -> AccelerometerScale | None:
+    """Y_a's scale (and with ``fit_bias`` its bias) from ``runs`` (records with
+    ``samples``: ``sideslip_training.dataset.Run``); None with too little cornering at
+    speed. No reference is read."""
+    chunks = [
+        c
+        for t, u, r, f_y in _stretches(runs)
+        for c in stretch_chunks(t, u, r, f_y, equal_chunks(t), fit_bias=fit_bias)
+    ]
+    return solve(chunks, fit_bias=fit_bias)
