@@ -19,7 +19,8 @@ setup(
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.xml")),
     ],
-    install_requires=["numpy", "PyYAML", "sideslip_msgs_py"],
+    # scipy: the Y_a check's filters (imu_scale.mode, on by default).
+    install_requires=["numpy", "PyYAML", "scipy", "sideslip_msgs_py"],
     # Optional back-ends: `pip install sideslip_estimator[pso_lstm]` (the model file reader
     # and numba for the compiled streaming engine), `[torch]` for the torch engine, `[ukf]`.
     extras_require={

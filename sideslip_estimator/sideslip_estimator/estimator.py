@@ -32,6 +32,7 @@ from sideslip_msgs_py.messages import NS_PER_S, ImuFields, SteeringFields, Twist
 from sideslip_msgs_py.timing import RATE_HZ, WINDOW_STEPS
 
 from .backends import Backend, Estimate
+from .imu_scale import ImuScale
 from .inputs import (
     X_V,
     Aligner,
@@ -110,12 +111,19 @@ class Estimator:
 
     ``on_*`` raise :class:`InputRejected` (with a short ``reason`` and a message naming
     the topic and field) for input that must not reach the model; the caller logs it.
-    The count is kept here either way.
+    The count is kept here either way. ``imu_scale``: the check (and correction) of Y_a
+    that every accepted sample passes through before it enters the window.
     """
 
-    def __init__(self, backend: Backend, params: EstimatorParams | None = None) -> None:
+    def __init__(
+        self,
+        backend: Backend,
+        params: EstimatorParams | None = None,
+        imu_scale: ImuScale | None = None,
+    ) -> None:
         self.backend = backend
         self.params = params or EstimatorParams()
+        self.imu_scale = imu_scale
         self.window = SampleWindow(self.params.window_steps, len(CHANNELS))
         self.aligner = Aligner(self.params.max_input_age_s)
         self.stats = EstimatorStats()
@@ -223,6 +231,8 @@ class Estimator:
         last = self._last_accepted_ns
         if last is not None and stamp - last > self._max_gap_ns:
             self.restart("gap")
+        if self.imu_scale is not None:
+            self.imu_scale.feed(row, stamp)
         self.window.push(row, stamp)
         self._last_accepted_ns = stamp
         self.stats.accepted += 1

@@ -23,6 +23,7 @@ from rclpy.clock import Clock, ClockType
 
 from sideslip_estimator.backends import BackendError, backend_factory
 from sideslip_estimator.estimator import Estimator, Output
+from sideslip_estimator.imu_scale import ImuScale
 from sideslip_estimator.inputs import InputRejected
 from sideslip_estimator.mapped_inputs import MappedInputs, mapped_inputs
 from sideslip_estimator.node_parameters import PARAMETERS, NodeParams, help_page
@@ -57,7 +58,14 @@ class EstimatorNode(rclpy.node.Node):
             self.get_logger().fatal(f"bad parameter: {err}")
             raise SystemExit(2) from None
         self.params = params
-        self.core = Estimator(backend, params.core)
+        imu_scale = None
+        if params.imu_scale.mode != "off":
+            imu_scale = ImuScale(params.imu_scale, params.core.max_gap_s)
+            line = imu_scale.load()
+            if line is not None:
+                self.get_logger().info(line)
+        self.core = Estimator(backend, params.core, imu_scale)
+        self._save_error = ""  # the last state-file error logged (each logged once)
         self.msgs = msgs = RclpyMessages()
         self.mapper = None if mapped is None else mapped[0]
         self.inputs: dict[str, tuple[Any, str]] = {}  # topic -> (subscription, type name)
@@ -185,8 +193,24 @@ class EstimatorNode(rclpy.node.Node):
             self.get_logger().warning(f"rejected input ({reason}, {count} so far): {detail}")
 
     # --- status -----------------------------------------------------------------------------
+    def _save_imu_scale(self, *, final: bool = False) -> None:
+        """Keep the Y_a measurement in its state file (when a chunk was added)."""
+        imu_scale = self.core.imu_scale
+        if imu_scale is None:
+            return
+        error = imu_scale.save(final=final) or ""
+        if error and error != self._save_error:
+            self.get_logger().error(error)
+        self._save_error = error
+
+    def destroy_node(self) -> None:
+        # The drive's last stretch joins the measurement before the node goes.
+        self._save_imu_scale(final=True)
+        super().destroy_node()
+
     def _publish_status(self) -> None:
         now_s = time.monotonic()
+        self._save_imu_scale()
         publishers, wrong_types = input_publishers(
             (sub.topic_name, expected, self.get_publishers_info_by_topic(sub.topic_name))
             for sub, expected in self.inputs.values()

@@ -17,6 +17,7 @@ from sideslip_msgs_py.parameter_spec import ParameterSpec, help_text
 
 from .backends import BACKENDS
 from .estimator import EstimatorParams
+from .imu_scale import ImuScaleParams
 from .inputs import InputLimits
 
 
@@ -35,6 +36,8 @@ class NodeParams:
     """1-σ of X_v for the v_x variance in /sideslip/twist."""
     core: EstimatorParams = field(default_factory=EstimatorParams)
     """The rules of the estimator core (window, input checks, limits)."""
+    imu_scale: ImuScaleParams = field(default_factory=ImuScaleParams)
+    """The check (and correction) of Y_a's scale while driving."""
 
     def __post_init__(self) -> None:
         for name in ("status_rate_hz", "silence_timeout_s"):
@@ -63,6 +66,12 @@ class NodeParams:
             status_rate_hz=float(values["status_rate_hz"]),
             velocity_sigma_mps=float(values["velocity_sigma_mps"]),
             core=core,
+            imu_scale=ImuScaleParams(
+                mode=str(values["imu_scale.mode"]),
+                state_file=str(values["imu_scale.state_file"]),
+                max_spread=float(values["imu_scale.max_spread"]),
+                memory_chunks=int(values["imu_scale.memory_chunks"]),
+            ),
         )
 
 
@@ -84,8 +93,10 @@ def estimator_params(values: Mapping[str, Any]) -> EstimatorParams:
 def _defaults() -> dict[str, bool | int | float | str]:
     """Every declared parameter's default, read from the dataclasses that own it."""
     node, core = NodeParams(), EstimatorParams()
+    nested = ("core", "imu_scale")
     return {
-        **{f.name: getattr(node, f.name) for f in fields(NodeParams) if f.name != "core"},
+        **{f.name: getattr(node, f.name) for f in fields(NodeParams) if f.name not in nested},
+        **{f"imu_scale.{f.name}": getattr(node.imu_scale, f.name) for f in fields(ImuScaleParams)},
         **{f.name: getattr(core, f.name) for f in fields(EstimatorParams) if f.name != "limits"},
         **{f"limits.{f.name}": getattr(core.limits, f.name) for f in fields(InputLimits)},
     }
@@ -136,6 +147,22 @@ PARAMETERS = (
     ),
     _spec("status_rate_hz", "Rate of /sideslip/status [Hz]."),
     _spec("velocity_sigma_mps", "1-σ of X_v [m/s] used for the v_x variance in /sideslip/twist."),
+    _spec(
+        "imu_scale.mode",
+        "Y_a checked against speed and yaw rate while driving (a body-frame IMU without "
+        "attitude reads 9-15 % of gravity into it): off; report (status values, WARN beyond "
+        "±3 %); apply (also correct Y_a by the measured scale and bias once confident).",
+    ),
+    _spec(
+        "imu_scale.state_file",
+        'File that keeps the Y_a measurement across restarts (JSON; "" = not kept).',
+    ),
+    _spec(
+        "imu_scale.max_spread",
+        "The measured scale is applied once its 1-σ (jackknife over chunks of about a "
+        "minute) is below this [-].",
+    ),
+    _spec("imu_scale.memory_chunks", "Chunks of driving (about a minute each) remembered."),
     _spec("limits.speed_mps", "|X_v|, |Y_v| beyond this [m/s] are rejected."),
     _spec("limits.acceleration_mps2", "|X_a|, |Y_a| beyond this [m/s²] are rejected."),
     _spec("limits.yaw_rate_radps", "|yaw rate| beyond this [rad/s] is rejected."),

@@ -87,6 +87,8 @@ class Observation:
     model was fitted on: σ widened, or (``pso_lstm.beyond_fit_range`` start) the start
     model's estimate and σ published. The status key keeps its first name,
     ``sigma_widened``, for the consumers that read it."""
+    imu_scale: tuple[Sequence[str], Mapping[str, str]] = ((), {})
+    """The Y_a check's warnings and values (:meth:`.imu_scale.ImuScale.report`)."""
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,7 @@ def assess(
     held, length = obs.window_fill
     if not silent and not stale and held < length:
         warnings.append(f"window filling ({held}/{length})")
+    warnings.extend(obs.imu_scale[0])
     if new.rejections:
         warnings.append(f"{new.rejections} input(s) rejected: {stats.last_rejection}")
     if new.drops > 0:  # < 0: late arrivals filled drops counted before
@@ -191,6 +194,7 @@ def assess(
         "window_restarts": str(sum(stats.resets.values())),
         **{f"restarts[{k}]": str(v) for k, v in sorted(stats.resets.items())},
         "last_rejection": stats.last_rejection or "-",
+        **obs.imu_scale[1],
     }
     return Status(level, message, values)
 
@@ -337,6 +341,7 @@ class StatusTracker:
             future_stamps=core.stats.future_stamps,
             sigmas_rad=self._sigmas_rad,
             widened=self._widened,
+            imu_scale=((), {}) if core.imu_scale is None else core.imu_scale.report(),
         )
         self._latencies_s, self._sigmas_rad, self._widened = [], [], 0
         return obs

@@ -8,6 +8,7 @@ diagnostic, no crash and never a NaN on a topic.
 
 from __future__ import annotations
 
+import json
 import math
 import signal
 import time
@@ -18,9 +19,12 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
+from kinematic_drive import kinematic_drive
 from ros_support import Probe, wait_for
 from std_msgs.msg import Float64, String
 
+from sideslip_estimator.backends import BACKENDS
+from sideslip_estimator.online_accelerometer_scale import OnlineAccelerometerScale
 from sideslip_msgs_py import topics
 from sideslip_msgs_py.messages import RclpyMessages, sample_to_messages
 from sideslip_msgs_py.nodes.qos import profile_for
@@ -313,11 +317,13 @@ def test_signal_stops_the_estimator_within_2_s_with_exit_0(estimator, sig):
         ("window_steps:=100.0", "window_steps must be a int"),
         ("kinematic.smoothing_steps:=500", "kinematic.smoothing_steps"),
         ("pso_lstm.model_file:=no_such_model", "pso_lstm.model_file"),
+        ("imu_scale.mode:=fix", "imu_scale.mode must be one of off, report, apply"),
     ],
 )
 def test_bad_parameter_exits_2_with_the_parameter_named(spawn, param, named):
     # A back-end's parameters are checked when it is built: select it.
-    backend = param.split(".", 1)[0] if "." in param.split(":=")[0] else "kinematic"
+    prefix = param.split(":=")[0].split(".", 1)[0]
+    backend = prefix if prefix in BACKENDS else "kinematic"
     child = spawn("sideslip-estimator", "--ros-args", "-p", f"backend:={backend}", "-p", param)
     code = child.proc.wait(30)
     assert code == 2, child.output()
@@ -598,3 +604,44 @@ def test_an_unusable_topic_map_exits_2_naming_why(spawn, tmp_path, change, named
     )
     assert child.proc.wait(30) == 2, child.output()
     assert named in child.output() and "Traceback" not in child.output()
+
+
+def test_the_y_a_measurement_is_restored_applied_reported_and_kept(spawn, probe, tmp_path):
+    # What a car with a body-frame IMU left in its state file on an earlier drive.
+    before = OnlineAccelerometerScale()
+    for sample in kinematic_drive(200.0, scale=1.12, bias=0.08).samples():
+        before.add(*sample)
+    before.end_stretch()
+    state = tmp_path / "imu_scale.json"
+    state.write_text(json.dumps(before.state()))
+    child = spawn(
+        "sideslip-estimator", "--ros-args",
+        "-p", "backend:=kinematic",
+        "-p", "status_rate_hz:=10.0",
+        "-p", "max_gap_s:=5.0",
+        "-p", "imu_scale.mode:=apply",
+        "-p", f"imu_scale.state_file:={state}",
+    )  # fmt: skip
+    status = probe.subscribe(
+        topics.SIDESLIP_STATUS, DiagnosticArray, profile_for(topics.SIDESLIP_STATUS)
+    )
+    _, _, values = wait_status(
+        status, lambda lv, m, v: v.get("imu_scale_applied") == "yes", 30, "the restored scale"
+    )
+    assert float(values["imu_scale"]) == pytest.approx(1.12, abs=0.005)
+    assert values["imu_scale_chunks"] == "4" and values["imu_scale_mode"] == "apply"
+    assert f"4 chunk(s) restored from {state}" in child.output()
+    # A short drive, then the node is stopped: the drive joins the kept measurement.
+    feeder = Feeder(probe)
+    feeder.wait_matched()
+    wait_status(
+        status,
+        lambda lv, m, v: all(v.get(f"publishers[{t}]", "none") != "none" for t in feeder.pubs),
+        20,
+        "the node seeing the feeder's publishers",
+    )
+    feeder.run(0, 1600)
+    wait_status(status, lambda lv, m, v: int(v["accepted_samples"]) >= 1500, 20, "the drive")
+    code, _ = child.stop(signal.SIGINT)
+    assert code == 0, child.output()
+    assert len(json.loads(state.read_text())["chunks"]) == 5

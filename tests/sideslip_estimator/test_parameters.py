@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 import sideslip_sim.node as sim_node
 from sideslip_estimator.backends import BACKENDS
 from sideslip_estimator.estimator import EstimatorParams
+from sideslip_estimator.imu_scale import ImuScaleParams
 from sideslip_estimator.inputs import InputLimits
 from sideslip_estimator.node_parameters import (
     PARAMETERS,
@@ -51,7 +52,13 @@ def _defaults() -> dict[str, object]:
 # --- typed defaults ---------------------------------------------------------------------------
 
 FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm")
-FLOAT_NAMES = {"mu", "real_time_factor", "friction_initial", "friction_initial_sigma"}
+FLOAT_NAMES = {
+    "mu",
+    "real_time_factor",
+    "friction_initial",
+    "friction_initial_sigma",
+    "max_spread",
+}
 INT_NAMES = {
     "window_steps",
     "smoothing_steps",
@@ -59,6 +66,7 @@ INT_NAMES = {
     "randomized_count",
     "wait_for_subscribers",
     "threads",
+    "memory_chunks",
 }
 BOOL_NAMES = {
     "publish_clock",
@@ -83,6 +91,8 @@ STR_NAMES = {
     "frame_id",
     "frame",  # imu.frame of the sim: level / body
     "topic_map_file",
+    "mode",  # imu_scale.mode: off / report / apply
+    "state_file",
     "mirror_average",  # auto / true / false (it takes a bool as well: ParameterSpec.takes_bool)
 }
 
@@ -169,8 +179,13 @@ def test_bad_value_is_a_value_error_naming_the_parameter(name: str, value: objec
 def _dataclass_defaults() -> dict[str, object]:
     """What each declared name configures, with the default its dataclass gives it."""
     node, core, limits = NodeParams(), EstimatorParams(), InputLimits()
+    nested = ("core", "imu_scale")
     return {
-        **{f.name: getattr(node, f.name) for f in dataclasses.fields(node) if f.name != "core"},
+        **{f.name: getattr(node, f.name) for f in dataclasses.fields(node) if f.name not in nested},
+        **{
+            f"imu_scale.{f.name}": getattr(node.imu_scale, f.name)
+            for f in dataclasses.fields(node.imu_scale)
+        },
         **{f.name: getattr(core, f.name) for f in dataclasses.fields(core) if f.name != "limits"},
         **{f"limits.{f.name}": getattr(limits, f.name) for f in dataclasses.fields(limits)},
     }
@@ -211,6 +226,10 @@ def test_declared_values_reach_the_node_params() -> None:
         "window_steps": 40,
         "input_rate_hz": 100.0,
         "limits.stl_m": 0.4,
+        "imu_scale.mode": "apply",
+        "imu_scale.state_file": "imu_scale.json",
+        "imu_scale.max_spread": 0.002,
+        "imu_scale.memory_chunks": 12,
     }
     params = NodeParams.from_values(values)
     assert params == NodeParams(
@@ -221,6 +240,7 @@ def test_declared_values_reach_the_node_params() -> None:
         status_rate_hz=5.0,
         velocity_sigma_mps=0.5,
         core=EstimatorParams(window_steps=40, input_rate_hz=100.0, limits=InputLimits(stl_m=0.4)),
+        imu_scale=ImuScaleParams("apply", "imu_scale.json", 0.002, 12),
     )
     assert params.velocity_variance_m2ps2 == 0.25
 
