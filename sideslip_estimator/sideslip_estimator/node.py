@@ -195,8 +195,8 @@ class EstimatorNode(rclpy.node.Node):
     # --- status -----------------------------------------------------------------------------
     def _save_imu_scale(self, *, final: bool = False) -> None:
         """Keep the Y_a measurement in its state file (when a chunk was added)."""
-        imu_scale = self.core.imu_scale
-        if imu_scale is None:
+        imu_scale = getattr(getattr(self, "core", None), "imu_scale", None)
+        if imu_scale is None:  # off, or the node did not get as far as making it
             return
         error = imu_scale.save(final=final) or ""
         if error and error != self._save_error:

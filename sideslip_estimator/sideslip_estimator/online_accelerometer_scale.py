@@ -34,6 +34,7 @@ from sideslip_msgs_py.messages import NS_PER_S
 
 from .accelerometer_scale import (
     CHUNK_S,
+    MIN_ROWS,
     AccelerometerScale,
     ChunkSums,
     StretchColumns,
@@ -139,7 +140,8 @@ class OnlineAccelerometerScale:
         """The driving stopped (a gap, a restart, shutdown): what is kept since the open
         chunk's start becomes a chunk, and the next sample starts a new stretch. The
         open block (under :data:`BLOCK_S`) is left out."""
-        if self._chunk_start_s is not None and len(self._rows) > 1:
+        # (Fewer rows than a chunk needs are dropped: the filters need some to pad.)
+        if self._chunk_start_s is not None and len(self._rows) >= MIN_ROWS:
             self._close_chunk(None)
         self._rows.clear()
         self._last = None

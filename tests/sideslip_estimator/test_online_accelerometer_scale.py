@@ -104,6 +104,17 @@ def test_a_gap_a_stamp_going_back_and_a_nan_end_the_stretch() -> None:
     assert est.scale == pytest.approx(1.1, abs=0.01)
 
 
+@pytest.mark.parametrize("samples", [2, 12, 40, 100, 160, 600])
+def test_a_stretch_too_short_to_filter_is_dropped_without_an_error(samples: int) -> None:
+    online = OnlineAccelerometerScale(max_gap_s=0.1)
+    drive = kinematic_drive(samples / 400.0, scale=1.1)
+    for sample in drive.samples():
+        online.add(*sample)
+    online.add(drive.stamp_ns[-1] + NS_PER_S, 20.0, 0.1, 2.0)  # after a gap
+    online.end_stretch()
+    assert online.estimate is None
+
+
 def test_straight_driving_gives_no_estimate() -> None:
     online = OnlineAccelerometerScale()
     for k in range(400 * 200):
