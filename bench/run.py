@@ -195,9 +195,18 @@ def main(argv: list[str] | None = None) -> int:
             "inference",
             "mirror_average",
             "streaming",
+            "imu_scale",
             "soak",
         ],
-        default=["simulator", "ros", "training", "inference", "mirror_average", "streaming"],
+        default=[
+            "simulator",
+            "ros",
+            "training",
+            "inference",
+            "mirror_average",
+            "streaming",
+            "imu_scale",
+        ],
         help="which benchmark sections to run (others keep their previous results); soak "
         "(sim + default estimator + 2 CPU-bound processes, --soak-seconds) only on request",
     )
@@ -259,12 +268,18 @@ def main(argv: list[str] | None = None) -> int:
             command += ["--load", str(load), "--note", label]
             subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
             results["streaming"][label] = json.loads(tmp.read_text())
+    if "imu_scale" in args.sections:
+        # The estimator's Y_a check (on by default) per accepted sample, one thread.
+        tmp = Path(tempfile.mkdtemp(prefix="sideslip-imu-scale-")) / "imu_scale.json"
+        command = [sys.executable, str(here / "imu_scale.py"), "--json", str(tmp)]
+        subprocess.run(command, env=one_thread, check=True, stdout=subprocess.DEVNULL)
+        results["imu_scale"] = json.loads(tmp.read_text())
     if "soak" in args.sections:
         from tools.soak import run as run_soak  # imports rclpy: only when asked for
 
         results["soak"] = run_soak(args.soak_seconds, load=2)
     sections = ("simulator", "ros_runtime", "training", "inference", "mirror_average")
-    for section in (*sections, "streaming", "soak"):
+    for section in (*sections, "streaming", "imu_scale", "soak"):
         if section in results:
             results[section]["measured"] = {  # type: ignore[index]
                 "date_utc": results["date_utc"],
