@@ -75,8 +75,6 @@ class OnlineAccelerometerScale:
             raise ValueError(f"memory_chunks must be >= {2 * RECENT_CHUNKS}, got {memory_chunks}")
         if not (math.isfinite(max_gap_s) and max_gap_s > 0.0):
             raise ValueError(f"max_gap_s must be finite and > 0, got {max_gap_s!r}")
-        import scipy.signal  # noqa: F401 - loaded now, not in the sample that closes a chunk
-
         self.fit_bias = fit_bias
         self.memory_chunks = memory_chunks
         self.chunks: deque[ChunkSums] = deque(maxlen=memory_chunks)

@@ -641,7 +641,8 @@ def test_the_y_a_measurement_is_restored_applied_reported_and_kept(spawn, probe,
         "the node seeing the feeder's publishers",
     )
     feeder.run(0, 1600)
-    wait_status(status, lambda lv, m, v: int(v["accepted_samples"]) >= 1500, 20, "the drive")
+    # (Enough for a chunk: 30 blocks of 50 ms; DDS may drop a few under load.)
+    wait_status(status, lambda lv, m, v: int(v["accepted_samples"]) >= 1000, 20, "the drive")
     code, _ = child.stop(signal.SIGINT)
     assert code == 0, child.output()
     assert len(json.loads(state.read_text())["chunks"]) == 5
