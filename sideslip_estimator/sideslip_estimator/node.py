@@ -12,9 +12,7 @@ dropped samples, and latency stays bounded by that short queue.
 
 from __future__ import annotations
 
-import importlib
 import sys
-import threading
 import time
 from collections.abc import Callable, Sequence
 from functools import partial
@@ -63,11 +61,6 @@ class EstimatorNode(rclpy.node.Node):
         imu_scale = None
         if params.imu_scale.mode != "off":
             imu_scale = ImuScale(params.imu_scale, params.core.max_gap_s)
-            # The fit's filters (scipy.signal, ~0.8 s to import) load beside the start,
-            # not in the input callback whose sample first closes a chunk.
-            threading.Thread(
-                target=importlib.import_module, args=("scipy.signal",), daemon=True
-            ).start()
             line = imu_scale.load()
             if line is not None:
                 self.get_logger().info(line)

@@ -8,11 +8,13 @@ fit's identity, and an anti-aliasing one) are kept at about 20 Hz. Once a chunk 
 :data:`CHUNK_S` and :data:`MARGIN_S` after it have arrived, the kept rows (with up to
 :data:`MARGIN_S` before the chunk) are filtered and the chunk's sums join the estimate:
 the margins let the zero-phase filters settle, so the chunk is fitted as the offline fit
-over the whole stretch would fit it. A sample costs a few float operations, a chunk
-about a millisecond, whatever the input rate: nothing that delays an estimate. A stretch
-ends at a gap, a stamp that goes back or a non-finite value; what is left of it then
-becomes a chunk of its own. tests/sideslip_estimator/test_online_accelerometer_scale.py
-holds the two fits to each other.
+over the whole stretch would fit it. A sample costs about 1.3 µs and the sample that
+closes a chunk 1.5–3 ms, whatever the input rate (``bench/imu_scale.py``): under one
+400-Hz sample period, once a minute. A stretch ends at a gap, a stamp that goes back or
+a non-finite value; what is left of it then becomes a chunk of its own (the last chunk
+of a stretch takes up to :data:`CHUNK_S` + :data:`MARGIN_S`).
+tests/sideslip_estimator/test_online_accelerometer_scale.py holds the two fits to each
+other.
 
 The estimate keeps the latest ``memory_chunks`` chunks, and it forgets the older ones at
 once when the latest :data:`RECENT_CHUNKS` disagree with them beyond their spreads (an
@@ -23,6 +25,7 @@ are the state that a restart keeps (:meth:`~OnlineAccelerometerScale.state`,
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections import deque
 from collections.abc import Mapping
@@ -75,6 +78,11 @@ class OnlineAccelerometerScale:
             raise ValueError(f"memory_chunks must be >= {2 * RECENT_CHUNKS}, got {memory_chunks}")
         if not (math.isfinite(max_gap_s) and max_gap_s > 0.0):
             raise ValueError(f"max_gap_s must be finite and > 0, got {max_gap_s!r}")
+        # The fit's filters (scipy.signal, about 0.8 s to import) load here, before a node
+        # subscribes: neither in the callback whose sample first closes a chunk nor in a
+        # thread beside the first callbacks (under load that lost the soak's first 16
+        # messages before the time line started, unreported).
+        importlib.import_module("scipy.signal")
         self.fit_bias = fit_bias
         self.memory_chunks = memory_chunks
         self.chunks: deque[ChunkSums] = deque(maxlen=memory_chunks)
