@@ -182,31 +182,18 @@ def bench_training() -> dict[str, object]:
     }
 
 
+SECTIONS = ("simulator", "ros", "training", "inference", "mirror_average", "streaming", "imu_scale")
+"""What ``make bench`` runs; the soak only on request."""
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench/results.json"))
     parser.add_argument(
         "--sections",
         nargs="+",
-        choices=[
-            "simulator",
-            "ros",
-            "training",
-            "inference",
-            "mirror_average",
-            "streaming",
-            "imu_scale",
-            "soak",
-        ],
-        default=[
-            "simulator",
-            "ros",
-            "training",
-            "inference",
-            "mirror_average",
-            "streaming",
-            "imu_scale",
-        ],
+        choices=[*SECTIONS, "soak"],
+        default=list(SECTIONS),
         help="which benchmark sections to run (others keep their previous results); soak "
         "(sim + default estimator + 2 CPU-bound processes, --soak-seconds) only on request",
     )

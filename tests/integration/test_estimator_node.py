@@ -125,6 +125,12 @@ def estimator(spawn, probe):
         topics.SIDESLIP_STATUS, DiagnosticArray, profile_for(topics.SIDESLIP_STATUS)
     )
     wait_for(lambda: len(status) > 0, 30, "the estimator's first status")
+    feeder = matched_feeder(probe, status)
+    return Rig(child, feeder, beta, twist, status)
+
+
+def matched_feeder(probe, status) -> Feeder:
+    """A feeder whose publishers the node has seen."""
     feeder = Feeder(probe)
     feeder.wait_matched()
     # The probe's publishers have matched the node's subscriptions, but the node may learn
@@ -136,7 +142,7 @@ def estimator(spawn, probe):
         20,
         "the node seeing the feeder's publishers",
     )
-    return Rig(child, feeder, beta, twist, status)
+    return feeder
 
 
 def wait_status(status, predicate, timeout_s: float, what: str):
@@ -632,14 +638,7 @@ def test_the_y_a_measurement_is_restored_applied_reported_and_kept(spawn, probe,
     assert values["imu_scale_chunks"] == "4" and values["imu_scale_mode"] == "apply"
     assert f"4 chunk(s) restored from {state}" in child.output()
     # A short drive, then the node is stopped: the drive joins the kept measurement.
-    feeder = Feeder(probe)
-    feeder.wait_matched()
-    wait_status(
-        status,
-        lambda lv, m, v: all(v.get(f"publishers[{t}]", "none") != "none" for t in feeder.pubs),
-        20,
-        "the node seeing the feeder's publishers",
-    )
+    feeder = matched_feeder(probe, status)
     feeder.run(0, 1600)
     # (Enough for a chunk: 30 blocks of 50 ms; DDS may drop a few under load.)
     wait_status(status, lambda lv, m, v: int(v["accepted_samples"]) >= 1000, 20, "the drive")
