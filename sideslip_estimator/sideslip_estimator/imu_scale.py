@@ -159,15 +159,15 @@ class ImuScale:
                 f"without attitude, or a scale error?): imu_scale.mode apply, or scale "
                 f"y_a_mps2 by {fix:.4f} in the topic map"
             )
+        measured = online.estimate  # confident or not
+        shown = ("n/a",) * 3
+        if measured is not None:
+            shown = tuple(f"{v:.4f}" for v in (measured.scale, measured.spread, measured.bias_mps2))
         values = {
             "imu_scale_mode": self.params.mode,
-            "imu_scale": "n/a" if online.estimate is None else f"{online.estimate.scale:.4f}",
-            "imu_scale_spread": "n/a"
-            if online.estimate is None
-            else f"{online.estimate.spread:.4f}",
-            "imu_scale_bias_mps2": "n/a"
-            if online.estimate is None
-            else f"{online.estimate.bias_mps2:.4f}",
+            **dict(
+                zip(("imu_scale", "imu_scale_spread", "imu_scale_bias_mps2"), shown, strict=True)
+            ),
             "imu_scale_applied": "yes" if self.applied is not None else "no",
             "imu_scale_chunks": str(len(online.chunks)),
             "imu_scale_cornering_s": f"{sum(c.cornering_s for c in online.chunks):.1f}",
