@@ -23,6 +23,12 @@ Modelling choices (why):
   That keeps standstill and 10 km/h cornering finite and stiff-free at 2.5 ms.
 - IMU accelerations are those of the CG in the vehicle (horizontal) frame, i.e. a
   roll/pitch-compensated IMU: a_x = u̇ − v·r, a_y = v̇ + u·r.
+- A banked road (``bank_sin`` = sin γ of a plane falling to the right of ψ = 0) adds
+  gravity's in-plane share g_x = −g·sin γ·sin ψ, g_y = −g·sin γ·cos ψ to the vehicle
+  frame's accelerations. The tyres and the suspension feel the specific force a − g
+  (what an accelerometer tilted with the road reads): the body leans downhill, the
+  tyres hold the car against the slope. The normal load stays m·g (cos γ ≥ 0.995 up to
+  the manoeuvres' 10 %), and the frame's velocities are those in the road plane.
 
 Corner order everywhere: 0 front-left, 1 front-right, 2 rear-left, 3 rear-right.
 
@@ -84,7 +90,9 @@ A_FZ = 2  # tyre vertical loads, 4 corners [N]
 A_FXW = 6  # tyre longitudinal forces in the wheel frame, 4 corners [N]
 A_FYW = 10  # tyre lateral forces in the wheel frame, 4 corners [N]
 A_DELTA = 14  # road-wheel steer angles, 4 corners [rad]
-N_AUX = 18
+A_GX = 18  # gravity's share in the road plane, vehicle frame [m/s^2] (0 on a level road)
+A_GY = 19
+N_AUX = 20
 
 # ---- packed parameters ----------------------------------------------------------------
 P_M = 0  # total mass [kg]
@@ -237,6 +245,7 @@ def rhs(
     steer: np.ndarray,
     wheel_torque: np.ndarray,
     mu: float,
+    bank_sin: float,
     dx: np.ndarray,
     aux: np.ndarray,
 ) -> None:
@@ -246,7 +255,8 @@ def rhs(
     steer: road-wheel angles per corner with their cosines and sines (see
     road_wheel_angles); aux doubles as scratch for the per-corner forces;
     wheel_torque: drive torque per wheel [N m];
-    mu: road friction relative to the tyre's test surface [-]. Fills dx and aux.
+    mu: road friction relative to the tyre's test surface [-]; bank_sin: the road's
+    sin γ, > 0 falling to the right of ψ = 0 (module docstring). Fills dx and aux.
     """
     u = x[S_U]
     v = x[S_V]
@@ -367,36 +377,38 @@ def rhs(
     m = p[P_M]
     ms = p[P_MS]
     g = GRAVITY_MPS2
+    psi = x[S_PSI]
+    cpsi = math.cos(psi)
+    spsi = math.sin(psi)
+    g_x = -g * bank_sin * spsi
+    g_y = -g * bank_sin * cpsi
 
     # Lateral + roll (coupled through the sprung mass swinging about the roll axis):
-    #   m v̇ − ms h' φ̈ = ΣFy − m u r
-    #   −ms h' v̇ + (Ixx + ms h'^2) φ̈ = ms g h' φ + M_susp + ms h' u r
+    #   m v̇ − ms h' φ̈ = ΣFy − m u r + m g_y
+    #   −ms h' v̇ + (Ixx + ms h'^2) φ̈ = ms g h' φ + M_susp + ms h' (u r − g_y)
     h_roll = p[P_HRA]
     a11 = m
     a12 = -ms * h_roll
     a22 = p[P_IXX] + ms * h_roll * h_roll
-    rhs1 = sum_fy - m * u * r
-    rhs2 = ms * g * h_roll * phi + roll_moment + ms * h_roll * u * r
+    rhs1 = sum_fy - m * u * r + m * g_y
+    rhs2 = ms * g * h_roll * phi + roll_moment + ms * h_roll * (u * r - g_y)
     det = a11 * a22 - a12 * a12
     v_dot = (rhs1 * a22 - a12 * rhs2) / det
     phi_ddot = (a11 * rhs2 - a12 * rhs1) / det
 
     # Longitudinal + pitch (pitch centre on the ground, no anti-dive/anti-squat):
-    #   m u̇ + ms hs θ̈ = ΣFx + m v r
-    #   ms hs u̇ + (Iyy + ms hs^2) θ̈ = ms g hs θ + M_susp + ms hs v r
+    #   m u̇ + ms hs θ̈ = ΣFx + m v r + m g_x
+    #   ms hs u̇ + (Iyy + ms hs^2) θ̈ = ms g hs θ + M_susp + ms hs (v r + g_x)
     hs = p[P_HS]
     b11 = m
     b12 = ms * hs
     b22 = p[P_IYY] + ms * hs * hs
-    rhs3 = sum_fx + m * v * r
-    rhs4 = ms * g * hs * theta + pitch_moment + ms * hs * v * r
+    rhs3 = sum_fx + m * v * r + m * g_x
+    rhs4 = ms * g * hs * theta + pitch_moment + ms * hs * (v * r + g_x)
     det2 = b11 * b22 - b12 * b12
     u_dot = (rhs3 * b22 - b12 * rhs4) / det2
     theta_ddot = (b11 * rhs4 - b12 * rhs3) / det2
 
-    psi = x[S_PSI]
-    cpsi = math.cos(psi)
-    spsi = math.sin(psi)
     dx[S_X] = u * cpsi - v * spsi
     dx[S_Y] = u * spsi + v * cpsi
     dx[S_PSI] = r
@@ -415,9 +427,10 @@ def rhs(
     # force at roll-centre height (geometric transfer); the unsprung masses' own
     # inertia acts at wheel-centre height, laterally per axle and longitudinally
     # between the axles. The unsprung masses do not roll, so their acceleration is
-    # that of the chassis reference point.
-    ay_ref = v_dot + u * r
-    ax_ref = u_dot - v * r
+    # that of the chassis reference point. What loads them is the specific force: on a
+    # banked road gravity's share pulls the unsprung masses as it pulls the body.
+    ay_ref = v_dot + u * r - g_y
+    ax_ref = u_dot - v * r - g_x
     m_u_f = 2.0 * p[P_MU_F]
     m_u_r = 2.0 * p[P_MU_R]
     geo_f = ((fy_front - m_u_f * ay_ref) * p[P_HRC_F] + m_u_f * ay_ref * rw) / p[P_TF]
@@ -436,8 +449,10 @@ def rhs(
         ) / mu_i  # reads, then writes slot i
 
     # Acceleration of the whole-vehicle CG (sprung mass rolling/pitching included).
-    aux[A_AX] = sum_fx / m
-    aux[A_AY] = sum_fy / m
+    aux[A_AX] = sum_fx / m + g_x
+    aux[A_AY] = sum_fy / m + g_y
+    aux[A_GX] = g_x
+    aux[A_GY] = g_y
 
 
 @njit(cache=True, error_model="numpy")
@@ -471,6 +486,7 @@ def rk4_step(
     steer: np.ndarray,
     torque: np.ndarray,
     mu: float,
+    bank_sin: float,
     k1: np.ndarray,
     work: np.ndarray,
 ) -> None:
@@ -488,13 +504,13 @@ def rk4_step(
     scratch = work[4]  # aux of the inner stages is not needed
     for j in range(n):
         xt[j] = x[j] + 0.5 * dt * k1[j]
-    rhs(xt, p, tc, steer, torque, mu, k2, scratch)
+    rhs(xt, p, tc, steer, torque, mu, bank_sin, k2, scratch)
     for j in range(n):
         xt[j] = x[j] + 0.5 * dt * k2[j]
-    rhs(xt, p, tc, steer, torque, mu, k3, scratch)
+    rhs(xt, p, tc, steer, torque, mu, bank_sin, k3, scratch)
     for j in range(n):
         xt[j] = x[j] + dt * k3[j]
-    rhs(xt, p, tc, steer, torque, mu, k4, scratch)
+    rhs(xt, p, tc, steer, torque, mu, bank_sin, k4, scratch)
     for j in range(n):
         x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -135,6 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar=("X", "Y"),
         help="the IMU's place from the CG, x forward, y left [m] (default 0 0)",
     )
+    parser.add_argument(
+        "--bank",
+        type=float,
+        default=0.0,
+        metavar="PCT",
+        help="road crossfall [%%] under every run: a plane falling to the right of the run's "
+        "start heading (< 0: to the left; roads drain at about 2.5 %%), ramped in over the "
+        "first second (default 0: level); recorded in each bag's manoeuvre",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
     return parser
 
@@ -162,11 +172,21 @@ def _preset_runs(args: argparse.Namespace) -> list[VehicleRun]:
     return single_vehicle(vehicle, maneuvers)
 
 
+def _on_bank(run: VehicleRun, bank_pct: float) -> VehicleRun:
+    """``run`` on a road falling to the right by ``bank_pct`` (a run turned the other way,
+    ``side`` −1, mirrors its road too: it gets −bank_pct so that its road still falls to
+    the right)."""
+    m = run.maneuver
+    return dataclasses.replace(run, maneuver=dataclasses.replace(m, bank_pct=bank_pct * m.side))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         noise_profile(args.noise)
         runs = _preset_runs(args)
+        if args.bank:
+            runs = [_on_bank(r, args.bank) for r in runs]
         if args.jobs < 1:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         imu = ImuMounting(tuple(args.imu_position), args.imu_frame)

@@ -20,9 +20,11 @@ turning at yaw rate r with yaw acceleration ṙ sees
 (its height adds roll- and pitch-rate terms of the sprung mass, not modelled). In the
 body frame the accelerometer then reads
 
-    f_x = a_x,P·cos θ − g·sin θ,   f_y = a_y,P·cos φ + g·sin φ
+    f_x = (a_x,P − g_x)·cos θ − g·sin θ,   f_y = (a_y,P − g_y)·cos φ + g·sin φ
 
-(the cross terms between roll and pitch, products of two small angles, are left out).
+with g_x, g_y gravity's share in the plane of a banked road (0 on a level road; the
+body's roll and pitch are the suspension's, relative to the road; the cross terms
+between roll and pitch, products of two small angles, are left out).
 The gyro is taken to read the yaw rate r: in the body frame it reads r·cos φ·cos θ plus
 roll- and pitch-rate terms, under 0.5 % at 5° of roll.
 """
@@ -108,10 +110,13 @@ def mounted_accelerations(
     yaw_rate_radps: np.ndarray,
     roll_rad: np.ndarray,
     pitch_rad: np.ndarray,
+    gravity_x_mps2: np.ndarray | float = 0.0,
+    gravity_y_mps2: np.ndarray | float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """What an IMU mounted as ``mounting`` reads, from the CG accelerations in the
-    horizontal frame [m/s²], the yaw rate [rad/s] and the body's roll and pitch [rad] on
-    the time base ``t_s`` [s] (see module)."""
+    horizontal frame [m/s²], the yaw rate [rad/s], the body's roll and pitch [rad] and
+    gravity's share in the road plane [m/s²] (a banked road's) on the time base ``t_s``
+    [s] (see module)."""
     x, y = mounting.position_m
     ax, ay = np.asarray(ax_mps2, dtype=float), np.asarray(ay_mps2, dtype=float)
     if x or y:
@@ -121,6 +126,6 @@ def mounted_accelerations(
         ay = ay + r_dot * x - r**2 * y
     if mounting.frame == "body":
         phi, theta = np.asarray(roll_rad, dtype=float), np.asarray(pitch_rad, dtype=float)
-        ax = ax * np.cos(theta) - GRAVITY_MPS2 * np.sin(theta)
-        ay = ay * np.cos(phi) + GRAVITY_MPS2 * np.sin(phi)
+        ax = (ax - gravity_x_mps2) * np.cos(theta) - GRAVITY_MPS2 * np.sin(theta)
+        ay = (ay - gravity_y_mps2) * np.cos(phi) + GRAVITY_MPS2 * np.sin(phi)
     return ax, ay

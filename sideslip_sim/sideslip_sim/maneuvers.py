@@ -17,6 +17,14 @@ small fractions, the nonlinear range near 0.8, never a command that could only s
 the car. For lane changes, the amplitude scales the lateral offset of the path
 (0.10 m ↔ the ISO 3888-1 offset of 3.5 m), the course is stretched where following
 it would need more than μ·g, and the driver produces the STL.
+
+Road crossfall. ``bank_pct`` tilts the road: a plane whose fall line points to the
+right of the run's start heading (> 0; roads drain towards their edge, about 2.5 % on a
+straight) or to the left (< 0), with tan γ = bank_pct/100. It is a plane, not a road
+that follows the car: once the car has turned by ψ, it meets the slope partly as a grade
+(docs/vehicle-model.md). The tilt is ramped in over the first :data:`BANK_RAMP_S` (a
+half-cosine), so that a run starts from the flat road's straight-line equilibrium
+instead of a tyre force step, as a car enters a banked stretch.
 """
 
 from __future__ import annotations
@@ -48,6 +56,10 @@ DLC_REFERENCE_STL_M = 0.10
 MAX_SPEED_KMH = 160.0
 # Largest centreline lateral acceleration of a lane-change course, as a fraction of μ·g.
 DLC_AY_FRACTION = 0.7
+MAX_BANK_PCT = 10.0
+"""Steeper crossfall is refused: the model keeps the normal load at m·g (cos γ ≥ 0.995
+up to 10 %) and passenger roads stay below it (superelevation of curves up to ~8 %)."""
+BANK_RAMP_S = 1.0
 
 
 class ManeuverError(ValueError):
@@ -70,6 +82,7 @@ class Maneuver:
     scenario: str = ""  # Table 4 scenario id when family == "scenario"
     ay_fraction: float = AUTO_AY_FRACTION
     side: int = 1  # +1: as defined (most families open to the left); -1: mirrored
+    bank_pct: float = 0.0  # road crossfall [%], > 0 falling to the right (module docstring)
 
     def __post_init__(self) -> None:
         if self.family not in FAMILIES:
@@ -100,6 +113,11 @@ class Maneuver:
             )
         if self.side not in (1, -1):
             raise ManeuverError(f"{self.name}: side must be 1 or -1, got {self.side!r}")
+        if not abs(self.bank_pct) <= MAX_BANK_PCT:  # (NaN fails too)
+            raise ManeuverError(
+                f"{self.name}: bank_pct must be in [-{MAX_BANK_PCT:g}, {MAX_BANK_PCT:g}] %, "
+                f"got {self.bank_pct}"
+            )
 
     @property
     def speed_mps(self) -> float:
@@ -111,13 +129,15 @@ class Maneuver:
 
 @dataclass(frozen=True)
 class Program:
-    """Per-step inputs for n steps: STL [m] where open loop, driver mask, torque [N m]."""
+    """Per-step inputs for n steps: STL [m] where open loop, driver mask, torque [N m],
+    the road's sin γ (signed as ``bank_pct``, ramped in)."""
 
     stl_open_m: np.ndarray
     use_driver: np.ndarray
     torque_nm: np.ndarray
     path_x_m: np.ndarray
     path_y_m: np.ndarray
+    bank_sin: np.ndarray
 
 
 def with_payload(vehicle: VehicleParams, payload_kg: float) -> VehicleParams:
@@ -302,12 +322,21 @@ def build_program(m: Maneuver, vehicle: VehicleParams, model: SingleTrack, dt_s:
         path_x, path_y = builder.build()
     else:
         path_x, path_y = np.array([0.0, 1.0]), np.array([0.0, 0.0])
+    bank = math.sin(math.atan(m.bank_pct / 100.0)) * _bank_ramp(t)
     if m.side < 0:  # the car is symmetric: the same manoeuvre driven the other way round
-        stl, path_y = -np.asarray(stl), -np.asarray(path_y)
+        # (on the mirrored road: a mirrored run is the exact mirror image of the other)
+        stl, path_y, bank = -np.asarray(stl), -np.asarray(path_y), -bank
     return Program(
         stl_open_m=np.ascontiguousarray(stl, dtype=np.float64),
         use_driver=np.ascontiguousarray(use_driver, dtype=np.bool_),
         torque_nm=np.full(n, float(m.torque_nm)),
         path_x_m=np.ascontiguousarray(path_x, dtype=np.float64),
         path_y_m=np.ascontiguousarray(path_y, dtype=np.float64),
+        bank_sin=np.ascontiguousarray(bank, dtype=np.float64),
     )
+
+
+def _bank_ramp(t: np.ndarray) -> np.ndarray:
+    """0 → 1 over :data:`BANK_RAMP_S` as a half-cosine (no jerk step at either end)."""
+    phase = np.clip(t / BANK_RAMP_S, 0.0, 1.0)
+    return 0.5 - 0.5 * np.cos(np.pi * phase)

@@ -214,6 +214,11 @@ PARAMETERS: Final = (
     _spec("maneuver.stl_amplitude_m", "Family runs: steering amplitude [m]; 0 = automatic."),
     _spec("maneuver.mu", "Family runs: road friction coefficient."),
     _spec(
+        "maneuver.bank_pct",
+        "Family runs: road crossfall [%], > 0 falling to the right of the start heading "
+        "(|bank| <= 10).",
+    ),
+    _spec(
         "imu.frame",
         "level: the CG acceleration in the horizontal frame, free of gravity (what the "
         "shipped models learnt); body: specific force in the body frame, gravity through "

@@ -56,7 +56,15 @@ def exact_samples(
     ax, ay = result.ax_mps2, result.ay_mps2
     if imu is not None and not imu.ideal:
         ax, ay = mounted_accelerations(
-            imu, result.t_s, ax, ay, result.yaw_rate_radps, result.roll_rad, result.pitch_rad
+            imu,
+            result.t_s,
+            ax,
+            ay,
+            result.yaw_rate_radps,
+            result.roll_rad,
+            result.pitch_rad,
+            result.gravity_x_mps2,
+            result.gravity_y_mps2,
         )
     return SampleArrays(
         stamp_ns=stamps,

@@ -29,7 +29,8 @@ O_U, O_V, O_R, O_AX, O_AY, O_STL, O_STL_RATE = 0, 1, 2, 3, 4, 5, 6
 O_X, O_Y, O_PSI, O_PHI, O_THETA, O_DELTA = 7, 8, 9, 10, 11, 12
 O_FZ = 13  # 4 corners
 O_OMEGA = 17  # 4 corners
-N_OUT = 21
+O_GX, O_GY = 21, 22  # gravity's share in the road plane (0 on a level road)
+N_OUT = 23
 
 
 class SimulationError(RuntimeError):
@@ -42,6 +43,8 @@ class SimResult:
 
     t_s[k] = k·dt. a_x/a_y are the CG accelerations in the horizontal vehicle frame,
     so v̇ = a_y − r·u holds. fz_n and omega_radps have one column per corner (FL, FR, RL, RR).
+    gravity_x/y_mps2: gravity's share in the road plane in the vehicle frame (a banked
+    road's, :mod:`.dynamics`; 0 on a level road): what the tyres carry is a − g.
     """
 
     maneuver: Maneuver
@@ -62,6 +65,8 @@ class SimResult:
     delta_rad: np.ndarray
     fz_n: np.ndarray
     omega_radps: np.ndarray
+    gravity_x_mps2: np.ndarray
+    gravity_y_mps2: np.ndarray
 
     @property
     def beta_rad(self) -> np.ndarray:
@@ -85,6 +90,7 @@ def _run(
     use_driver: np.ndarray,
     torque: np.ndarray,
     mu: float,
+    bank_sin: np.ndarray,
     path_x: np.ndarray,
     path_y: np.ndarray,
     driver_cfg: np.ndarray,
@@ -151,7 +157,7 @@ def _run(
         # steering itself (a 2.5-ms lag on a ~1-Hz roll mode).
         delta_mean = dyn.road_wheel_angles(stl, p, steer, x[dyn.S_PHI])
         dyn.wheel_torques(torque[k], p, wheel_torque)
-        dyn.rhs(x, p, tc, steer, wheel_torque, mu, k1, aux)
+        dyn.rhs(x, p, tc, steer, wheel_torque, mu, bank_sin[k], k1, aux)
 
         row = out[k - k_start]
         row[O_U], row[O_V] = dyn.cg_velocity(x, p)
@@ -169,10 +175,12 @@ def _run(
         for i in range(4):
             row[O_FZ + i] = aux[dyn.A_FZ + i]
             row[O_OMEGA + i] = x[dyn.S_OMEGA + i]
+        row[O_GX] = aux[dyn.A_GX]
+        row[O_GY] = aux[dyn.A_GY]
         for j in range(N_OUT):
             if not math.isfinite(row[j]):
                 return k
-        dyn.rk4_step(x, dt, p, tc, steer, wheel_torque, mu, k1, work)
+        dyn.rk4_step(x, dt, p, tc, steer, wheel_torque, mu, bank_sin[k], k1, work)
         carry[0] = path_index
         carry[1] = stl_prev
         carry[2] = handover
@@ -234,6 +242,8 @@ def simulate(
         delta_rad=cols[O_DELTA],
         fz_n=cols[O_FZ : O_FZ + 4].T,
         omega_radps=cols[O_OMEGA : O_OMEGA + 4].T,
+        gravity_x_mps2=cols[O_GX],
+        gravity_y_mps2=cols[O_GY],
     )
 
 
@@ -295,6 +305,7 @@ class Stepper:
             p.use_driver,
             p.torque_nm,
             float(self.maneuver.mu),
+            p.bank_sin,
             p.path_x_m,
             p.path_y_m,
             self._driver_cfg,

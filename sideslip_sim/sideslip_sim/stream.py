@@ -45,6 +45,7 @@ class ManeuverSpec:
     torque_nm: float = 0.0
     stl_amplitude_m: float = 0.0
     mu: float = 1.0
+    bank_pct: float = 0.0
 
 
 def select_runs(
@@ -74,6 +75,7 @@ def select_runs(
                 stl_amplitude_m=s.stl_amplitude_m,
                 mu=s.mu,
                 seed=seed,
+                bank_pct=s.bank_pct,
             )
         ]
     families = [f for f in FAMILIES if f != "scenario"]
