@@ -124,7 +124,8 @@ class ModelMetadata:
     observer: dict[str, Any] | None = field(default=None, hash=False)
     """Parameters of the ``ukf`` back-end (all but ``params_file``) that computed the
     ``ukf.*`` inputs or prior in training; deployment runs the same filter with the car's
-    ``ukf`` params file. Required exactly when the model reads the observer."""
+    ``ukf`` params file. Required exactly when the model reads the observer. A file that
+    does not record ``estimate_disturbance`` (written before it existed) reads as false."""
     uncertainty: dict[str, Any] | None = field(default=None, hash=False)
     """The per-sample standard deviation model
     (:class:`~sideslip_msgs_py.uncertainty.Uncertainty` as a dict), or None: the
@@ -203,6 +204,10 @@ class ModelMetadata:
             if not isinstance(v, dict):
                 raise fail(f"{name} must be a JSON object (dict), got {type(v).__name__}")
             object.__setattr__(self, name, _json_value(v, name))
+        if self.observer is not None and "estimate_disturbance" not in self.observer:
+            # Files from before the UKF's disturbance state (2026-12-06) were trained on
+            # the filter without it: deployment must run that filter, not today's default.
+            object.__setattr__(self, "observer", {**self.observer, "estimate_disturbance": False})
         if self.uncertainty is not None:
             from .uncertainty import Uncertainty, UncertaintyError
 

@@ -51,7 +51,7 @@ def _defaults() -> dict[str, object]:
 
 # --- typed defaults ---------------------------------------------------------------------------
 
-FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm")
+FLOAT_SUFFIXES = ("_s", "_m", "_mps", "_mps2", "_radps", "_radps2", "_hz", "_kmh", "_nm", "_pct")
 FLOAT_NAMES = {
     "mu",
     "real_time_factor",
@@ -74,6 +74,7 @@ BOOL_NAMES = {
     "ground_truth",
     "tyre_relaxation",
     "estimate_friction",
+    "estimate_disturbance",
 }
 STR_NAMES = {
     "backend",

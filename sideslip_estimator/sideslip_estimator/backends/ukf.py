@@ -14,6 +14,12 @@ State (REP-103, body frame at the CG), in this order (:attr:`UkfBackend.state_na
     μ    [-]      road friction relative to the tyre's test surface: a random walk
                   that returns to ``friction_initial`` with time constant
                   ``friction_memory_s`` (with ``estimate_friction``; else fixed there)
+    d_y  [m/s²]   lateral disturbance (with ``estimate_disturbance``): an acceleration
+                  the tyres do not give, gravity's share on a banked road and the
+                  model's own lateral-force error; it drives v̇_y = F_y/m − ψ̇ v_x + d_y
+                  and is in the measured a_y = F_y/m + d_y (the IMU reads the car's
+                  acceleration, docs/evaluation/road-bank), a random walk returning to 0
+                  with time constant ``disturbance_memory_s``
 
 Inputs: δ = STL / steering ratio (mean road-wheel angle) and a_x = X_a; the model
 (:mod:`.ukf_model`) gives the state's derivative, and (ψ̇, a_y, v_x) to compare with
@@ -116,6 +122,8 @@ class UkfBackend:
                 "friction_initial",
                 "friction_initial_sigma",
                 "friction_memory_s",
+                "disturbance_sigma_mps2",
+                "disturbance_memory_s",
                 "min_speed_mps",
             ),
         )
@@ -124,6 +132,7 @@ class UkfBackend:
         self.friction_memory = sig["friction_memory_s"]
         self.relaxation = bool(v["tyre_relaxation"])
         self.estimate_friction = bool(v["estimate_friction"])
+        self.disturbance_memory = sig["disturbance_memory_s"]
         self.model = SingleTrackMagicFormula(self.params)
         self._steer_ratio = self.params.stl_per_road_wheel_angle_m_per_rad
 
@@ -141,6 +150,12 @@ class UkfBackend:
             names.append("road_friction")
             q.append(sig["process_sigma_friction_per_sqrt_s"])
             p0.append(sig["friction_initial_sigma"])
+        self._i_dist = len(names) if bool(v["estimate_disturbance"]) else -1
+        if self._i_dist >= 0:
+            names.append("lateral_disturbance_mps2")
+            # An Ornstein-Uhlenbeck walk whose stationary 1-σ is disturbance_sigma_mps2.
+            q.append(sig["disturbance_sigma_mps2"] * math.sqrt(2.0 / self.disturbance_memory))
+            p0.append(sig["disturbance_sigma_mps2"])
         self.state_names = tuple(names)
         n = len(names)
         self._q_rate = np.square(q)
@@ -177,6 +192,11 @@ class UkfBackend:
         if self._i_mu >= 0:
             # A random walk that slowly forgets (Ornstein-Uhlenbeck): bounded uncertainty.
             dx.append((self.friction_initial - mu) / self.friction_memory)
+        if self._i_dist >= 0:
+            # It moves the car sideways; the tyres do not carry it.
+            d_y = x[self._i_dist]
+            dx[1] += d_y
+            dx.append(-d_y / self.disturbance_memory)
         return dx
 
     def _fx(
@@ -206,7 +226,10 @@ class UkfBackend:
         else:
             alpha_f, alpha_r = self.model.slip_angles(v_x, v_y, r, delta)
         f_front, f_rear = self.model.forces(alpha_f, alpha_r, mu, a_x)
-        return np.array([r, (f_front * math.cos(delta) + f_rear) / self.model.m, v_x])
+        a_y = (f_front * math.cos(delta) + f_rear) / self.model.m
+        if self._i_dist >= 0:
+            a_y += s[self._i_dist]  # the IMU reads the car's acceleration, all of it
+        return np.array([r, a_y, v_x])
 
     # --- Backend protocol ------------------------------------------------------------------
     def reset(self) -> None:
@@ -221,6 +244,8 @@ class UkfBackend:
             x += list(self.model.slip_angles(v_x, 0.0, r, delta))
         if self._i_mu >= 0:
             x.append(self.friction_initial)
+        if self._i_dist >= 0:
+            x.append(0.0)
         self._ukf.x = np.array(x)
         self._ukf.P = self._p0.copy()
         self._ukf.P[1, 1] = (_INITIAL_SIGMA_BETA_RAD * v_x) ** 2

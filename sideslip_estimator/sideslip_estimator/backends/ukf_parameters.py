@@ -101,6 +101,26 @@ UKF_PARAMETERS: Final = (
         "process_sigma_friction_per_sqrt_s·√(memory/2) instead of letting it grow.",
     ),
     ParameterSpec(
+        "estimate_disturbance",
+        False,
+        "Estimate a lateral acceleration that the tyre model does not explain (gravity's "
+        "share on a banked road, the model's own force error) as a state: it drives v̇_y "
+        "and is in the measured a_y, not in the tyres' forces (off by default: "
+        "docs/evaluation/road-bank says where it helps and where it costs).",
+    ),
+    ParameterSpec(
+        "disturbance_sigma_mps2",
+        1.0,
+        "Stationary 1-σ of the lateral disturbance [m/s²] (with estimate_disturbance), "
+        "also its 1-σ at (re)start (chosen on validation cars, docs/evaluation/road-bank).",
+    ),
+    ParameterSpec(
+        "disturbance_memory_s",
+        3.0,
+        "Time constant [s] of the disturbance's return to 0 (with estimate_disturbance; "
+        "chosen on validation cars).",
+    ),
+    ParameterSpec(
         "min_speed_mps",
         3.0,
         "Below this X_v [m/s] slip angles are ill-defined: the filter restarts, no estimate.",
