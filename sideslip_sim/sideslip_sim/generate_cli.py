@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import os
 import sys
@@ -32,6 +31,7 @@ from sideslip_sim.presets import (
     VEHICLE_PRESETS,
     PresetError,
     VehicleRun,
+    on_bank,
     preset,
     vehicle_preset,
 )
@@ -172,21 +172,13 @@ def _preset_runs(args: argparse.Namespace) -> list[VehicleRun]:
     return single_vehicle(vehicle, maneuvers)
 
 
-def _on_bank(run: VehicleRun, bank_pct: float) -> VehicleRun:
-    """``run`` on a road falling to the right by ``bank_pct`` (a run turned the other way,
-    ``side`` −1, mirrors its road too: it gets −bank_pct so that its road still falls to
-    the right)."""
-    m = run.maneuver
-    return dataclasses.replace(run, maneuver=dataclasses.replace(m, bank_pct=bank_pct * m.side))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         noise_profile(args.noise)
         runs = _preset_runs(args)
         if args.bank:
-            runs = [_on_bank(r, args.bank) for r in runs]
+            runs = [on_bank(r, args.bank) for r in runs]
         if args.jobs < 1:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         imu = ImuMounting(tuple(args.imu_position), args.imu_frame)

@@ -22,6 +22,7 @@ held-out: the held-out benchmark (`sideslip_sim.held_out`): never for training.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -207,6 +208,14 @@ class VehicleRun:
 
     vehicle: VehicleParams
     maneuver: Maneuver
+
+
+def on_bank(run: VehicleRun, bank_pct: float) -> VehicleRun:
+    """``run`` on a road falling to the right of its start heading by ``bank_pct`` [%] (a
+    run turned the other way, ``side`` −1, mirrors its road too, so it is given
+    −bank_pct: its road still falls to the right)."""
+    m = run.maneuver
+    return dataclasses.replace(run, maneuver=dataclasses.replace(m, bank_pct=bank_pct * m.side))
 
 
 def fleet(count: int, seed: int, *, both_sides: bool = False) -> list[VehicleRun]:

@@ -8,7 +8,8 @@ benchmark will score, made without it.
     python training/scripts/validation_benchmark.py --cars 0 1 2 3 4 5 6 7 --out data/val-benchmark
 
 ``--imu-frame body`` / ``--imu-position X Y``: the same drives read by an IMU in the body
-frame or away from the CG (:mod:`sideslip_sim.imu_mounting`).
+frame or away from the CG (:mod:`sideslip_sim.imu_mounting`); ``--bank PCT``: on a road
+falling to the right by PCT % (as ``sideslip-generate --bank``).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.generate import generate, prepare_output
 from sideslip_sim.held_out import held_out_digests
 from sideslip_sim.imu_mounting import ImuMounting
-from sideslip_sim.presets import benchmark_runs
+from sideslip_sim.presets import benchmark_runs, on_bank
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import VAL_CARS, VAL_SEED
@@ -34,10 +35,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--imu-frame", choices=("level", "body"), default="level")
     p.add_argument("--imu-position", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
+    p.add_argument("--bank", type=float, default=0.0, metavar="PCT", help="road crossfall [%%]")
     args = p.parse_args(argv)
     imu = ImuMounting(tuple(args.imu_position), args.imu_frame)
     fleet = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
     runs = benchmark_runs({fleet[k].name: fleet[k] for k in args.cars})
+    if args.bank:
+        runs = [on_bank(r, args.bank) for r in runs]
     prepare_output(args.out, force=True)
     generate(runs, args.out, noise="paper", preset_name="validation-benchmark", jobs=args.jobs,
              imu=imu)  # fmt: skip
