@@ -255,7 +255,15 @@ def test_the_observers_settings_round_trip_with_a_model_anchored_on_it(tmp_path:
     tensors = random_tensors(meta)
     write_artifact(tmp_path / "m.safetensors", tensors, meta)
     _, back = read_artifact(tmp_path / "m.safetensors")
-    assert back == meta and back.observer == {"min_speed_mps": 3.0, "tyre_relaxation": True}
+    # A file that does not record the UKF's disturbance state (older than it) ran without.
+    recorded = {"min_speed_mps": 3.0, "tyre_relaxation": True, "estimate_disturbance": False}
+    assert back == meta and back.observer == recorded
+
+
+def test_a_recorded_disturbance_setting_is_kept(tmp_path: Path) -> None:
+    meta = make_meta(prior="ukf", observer={"estimate_disturbance": True})
+    write_artifact(tmp_path / "m.safetensors", random_tensors(meta), meta)
+    assert read_artifact(tmp_path / "m.safetensors")[1].observer == {"estimate_disturbance": True}
 
 
 def test_artifact_error_is_a_contract_error() -> None:

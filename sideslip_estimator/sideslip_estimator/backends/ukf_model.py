@@ -28,7 +28,9 @@ load transfer and roll steer are not in the equations: the files ``sideslip_sim.
 writes fold them into the axle curves (effective axle characteristics, fitted to the
 whole car's steady cornering; the validation fleet's pooled MAE 0.141° → 0.104°). Known
 gaps: their dynamics (roll lags the lateral acceleration by a few tenths of a second),
-compliance steer, nominal mass and inertia (no payload).
+compliance steer, nominal mass and inertia (no payload), and a road that is not level
+(gravity's share on a crossfall moves the car but the tyres do not give it: the filter's
+optional disturbance state, :mod:`.ukf`, docs/evaluation/road-bank).
 
 :class:`UkfParams` is the vehicle's file (``python -m sideslip_sim.ukf_params VEHICLE``
 writes it; shipped ones in ``data/ukf``); :class:`SingleTrackMagicFormula` evaluates the
