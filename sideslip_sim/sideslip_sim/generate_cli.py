@@ -32,6 +32,7 @@ from sideslip_sim.presets import (
     PresetError,
     VehicleRun,
     on_bank,
+    on_random_banks,
     preset,
     vehicle_preset,
 )
@@ -145,6 +146,15 @@ def build_parser() -> argparse.ArgumentParser:
         "start heading (< 0: to the left; roads drain at about 2.5 %%), ramped in over the "
         "first second (default 0: level); recorded in each bag's manoeuvre",
     )
+    parser.add_argument(
+        "--bank-spread",
+        type=float,
+        default=None,
+        metavar="PCT",
+        help="each run on its own crossfall, drawn uniformly in [-PCT, PCT] %% (seeded by "
+        "--seed; the runs are otherwise those without it), e.g. 4 for training data that "
+        "covers drained and gently superelevated roads; not with --bank",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
     return parser
 
@@ -177,8 +187,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         noise_profile(args.noise)
         runs = _preset_runs(args)
+        if args.bank and args.bank_spread is not None:
+            raise PresetError("--bank and --bank-spread exclude each other")
         if args.bank:
             runs = [on_bank(r, args.bank) for r in runs]
+        if args.bank_spread is not None:
+            runs = on_random_banks(runs, args.bank_spread, args.seed)
         if args.jobs < 1:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         imu = ImuMounting(tuple(args.imu_position), args.imu_frame)

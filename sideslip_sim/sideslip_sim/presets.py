@@ -32,7 +32,7 @@ import numpy as np
 
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import HELD_OUT_MU, held_out_digests, held_out_vehicles
-from sideslip_sim.maneuvers import Maneuver, auto_stl_amplitude
+from sideslip_sim.maneuvers import MAX_BANK_PCT, Maneuver, auto_stl_amplitude
 from sideslip_sim.single_track import SingleTrack
 from sideslip_sim.tire import load_tire
 from sideslip_sim.vehicle import VehicleParams
@@ -200,6 +200,8 @@ _FLEET_WEIGHTS = np.array([0.16, 0.16, 0.16, 0.12, 0.22, 0.14, 0.04])
 HELD_OUT_RUNS = (*TABLE4, "step_steer", "sweep_steer")
 HELD_OUT_SPEED_KMH = {"step_steer": 80.0, "sweep_steer": 80.0}
 HELD_OUT_AY_FRACTION = 0.85  # of μ·g in steady state: near the limit, not over it
+# Second seed word of the crossfall draws, so they never share a stream with a preset's.
+_BANK_STREAM = 0xBA4C
 
 
 @dataclass(frozen=True)
@@ -216,6 +218,24 @@ def on_bank(run: VehicleRun, bank_pct: float) -> VehicleRun:
     −bank_pct: its road still falls to the right)."""
     m = run.maneuver
     return dataclasses.replace(run, maneuver=dataclasses.replace(m, bank_pct=bank_pct * m.side))
+
+
+def on_random_banks(runs: Sequence[VehicleRun], spread_pct: float, seed: int) -> list[VehicleRun]:
+    """``runs`` each on its own crossfall, drawn uniformly in [−spread_pct, spread_pct] [%]
+    (falling to the right of the start heading when > 0, as ``on_bank``).
+
+    Its own generator (seeded by ``seed``): the cars and manoeuvres are those of the same
+    preset without crossfall, so a trained model can be compared run for run. Uniform
+    rather than clustered at the 2.5 % drain slope because drains fall either way of a
+    run's heading and curves are superelevated further; ``spread_pct`` ≤ MAX_BANK_PCT."""
+    if not 0.0 < spread_pct <= MAX_BANK_PCT:  # (NaN fails too)
+        raise PresetError(f"bank spread must be in (0, {MAX_BANK_PCT:g}] %, got {spread_pct}")
+    rng = np.random.default_rng([seed, _BANK_STREAM])
+    banks = rng.uniform(-spread_pct, spread_pct, size=len(runs))
+    return [
+        dataclasses.replace(r, maneuver=dataclasses.replace(r.maneuver, bank_pct=float(b)))
+        for r, b in zip(runs, banks, strict=True)
+    ]
 
 
 def fleet(count: int, seed: int, *, both_sides: bool = False) -> list[VehicleRun]:

@@ -15,6 +15,7 @@ from sideslip_msgs_py.bag import read_bag
 from sideslip_sim.generate_cli import main
 from sideslip_sim.imu_mounting import ImuMounting, mounted_accelerations
 from sideslip_sim.maneuvers import BANK_RAMP_S, Maneuver, ManeuverError
+from sideslip_sim.presets import PresetError, on_random_banks, vehicle_preset
 from sideslip_sim.simulate import simulate
 from sideslip_sim.stream import ManeuverSpec, select_runs
 from sideslip_sim.vehicle import GRAVITY_MPS2, load_vehicle
@@ -124,3 +125,36 @@ def test_generate_refuses_a_crossfall_beyond_ten_percent(tmp_path, capsys):
 def test_the_sim_nodes_family_runs_take_their_crossfall_from_the_parameters():
     (run,) = select_runs("straight", spec=ManeuverSpec(bank_pct=2.0))
     assert run.bank_pct == 2.0
+
+
+def test_random_crossfalls_are_seeded_within_the_spread_and_change_nothing_else():
+    runs = vehicle_preset("fleet", seed=1, count=40)
+    banked = on_random_banks(runs, 4.0, seed=1)
+    again = on_random_banks(runs, 4.0, seed=1)
+    other = on_random_banks(runs, 4.0, seed=2)
+    banks = np.array([r.maneuver.bank_pct for r in banked])
+    assert np.all(np.abs(banks) <= 4.0)
+    assert (banks > 0).any() and (banks < 0).any()  # both ways, not one drain side
+    assert banks.tolist() == [r.maneuver.bank_pct for r in again]
+    assert banks.tolist() != [r.maneuver.bank_pct for r in other]
+    for plain, tilted in zip(runs, banked, strict=True):
+        assert tilted.vehicle == plain.vehicle
+        assert dataclasses.replace(tilted.maneuver, bank_pct=0.0) == plain.maneuver
+
+
+@pytest.mark.parametrize("spread", [0.0, -1.0, 10.5, math.nan])
+def test_a_crossfall_spread_outside_ten_percent_is_refused(spread):
+    with pytest.raises(PresetError, match="bank spread"):
+        on_random_banks(vehicle_preset("fleet", seed=1, count=4), spread, seed=1)
+
+
+def test_generate_draws_each_runs_crossfall_and_refuses_it_beside_a_fixed_one(tmp_path, capsys):
+    out = tmp_path / "spread"
+    argv = ["--preset", "fleet", "--count", "4", "--seed", "3", "--out", str(out)]
+    assert main([*argv, "--bank-spread", "3", "--jobs", "1", "--quiet"]) == 0
+    banks = [read_bag(b).run_metadata["maneuver"]["bank_pct"] for b in sorted(out.iterdir())
+             if b.is_dir()]  # fmt: skip
+    assert len(banks) == 4 and len(set(banks)) == 4
+    assert all(abs(b) <= 3.0 for b in banks)
+    assert main([*argv, "--bank", "2", "--bank-spread", "3", "--force"]) == 2
+    assert "--bank-spread" in capsys.readouterr().err
