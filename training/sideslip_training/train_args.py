@@ -180,6 +180,16 @@ def train_parser() -> argparse.ArgumentParser:
         "record no car, when the inputs or the prior read the UKF observer",
     )
     p.add_argument(
+        "--observer-value",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a setting of the UKF observer the model reads, as the estimator's ukf "
+        "back-end names it (e.g. estimate_disturbance=true; repeatable; default: the "
+        "back-end's defaults); stored in the model file so the node runs the same filter. "
+        "Not with --init, whose network learnt its own filter",
+    )
+    p.add_argument(
         "--vehicle",
         type=Path,
         help="nominal parameters (YAML) of the car of bags that record none, for inputs "

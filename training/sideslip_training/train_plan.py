@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from sideslip_msgs_py.model_inputs import input_set
 from sideslip_msgs_py.vehicle_description import VehicleDescription
@@ -128,6 +130,22 @@ def resolve_model(
     return tuple(m.features), m.hidden_units, m.layers
 
 
+def observer_values(items: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` settings of the UKF observer (``--observer-value``), each value read
+    as YAML (true, 1.5, ...); names and types are checked against the back-end when the
+    input spec is built."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise CliError(f"--observer-value must be KEY=VALUE, got {item!r}")
+        try:
+            out[key.strip()] = yaml.safe_load(text)
+        except yaml.YAMLError:
+            raise CliError(f"--observer-value {item!r}: the value is not YAML") from None
+    return out
+
+
 def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> TrainPlan:
     """Resolve the options, check the outputs and load the data (nothing is written).
 
@@ -168,6 +186,13 @@ def plan_training(args: argparse.Namespace, log: Callable[[str], None]) -> Train
     step_s = 1.0 / args.rate_hz
     window = window_steps(step_s, steps=args.window_steps, seconds=args.window_s)
     observer = init.meta.observer if init is not None else None
+    if args.observer_value:
+        if init is not None:
+            raise CliError(
+                "--observer-value does not go with --init: the model's network learnt "
+                "the outputs of the filter it records"
+            )
+        observer = observer_values(args.observer_value)
     spec = InputSpec(features, args.prior, step_s, vehicle, observer, observer_file, car=args.car)
     if args.car == "given":
         missing = [
