@@ -6,6 +6,9 @@ variant (docs/evaluation/road-bank).
     python training/scripts/ukf_disturbance_check.py --data data/val-benchmark-bank2.5 \
         --cars 8 --variants '{"off": {}, "on": {"estimate_disturbance": true}}' --out v.json
 
+``--start-at F``: each run's filter starts at that fraction of the run, in mid-manoeuvre
+(as a restart after a gap, or a recording cut in time), and is scored from there.
+
 ``--cars N``: the first N cars of the validation fleet (``fit_bags_check.VAL_CARS``; the
 bags of ``validation_benchmark.py`` or ``sideslip-generate --preset fleet --count 100
 --seed 2``); ``--held-out``: the six held-out cars instead (scored once).
@@ -27,6 +30,7 @@ from sideslip_estimator.replay import replay, replay_columns
 from sideslip_msgs_py.bag import read_bag
 from sideslip_sim.fleet import sample_fleet
 from sideslip_sim.held_out import held_out_digests, held_out_vehicles
+from sideslip_training.dataset import slice_samples
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fit_bags_check import VAL_CARS, VAL_SEED
@@ -51,8 +55,11 @@ def main(argv: list[str] | None = None) -> int:
     group.add_argument("--cars", type=int, help="the first N validation cars")
     group.add_argument("--held-out", action="store_true", help="the six held-out cars")
     p.add_argument("--variants", required=True, help="JSON: {name: {ukf.* values}}")
+    p.add_argument("--start-at", type=float, default=0.0, help="fraction of each run [0, 1)")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
+    if not 0.0 <= args.start_at < 1.0:
+        p.error(f"--start-at must be in [0, 1), got {args.start_at}")
     variants = json.loads(args.variants)
     if args.held_out:
         cars = list(held_out_vehicles().values())
@@ -65,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         ukf_file = write_true_ukf(car, tmp / f"{car.name}.yaml", "ukf_disturbance_check.py")
         bags = sorted(b for b in args.data.iterdir() if b.name.startswith(f"{car.name}_"))
         drives = [read_bag(b).samples for b in bags]
+        drives = [slice_samples(d, int(args.start_at * len(d)), len(d)) for d in drives]
         for name, values in variants.items():
             results[name][car.name] = _pooled_mae(drives, ukf_file, values)
             print(car.name, name, f"{results[name][car.name]:.4f}", flush=True)
