@@ -28,6 +28,11 @@ def main() -> None:
     p.add_argument("model")
     p.add_argument("--data", default="data/held-out")
     p.add_argument("--car", default="paper_sedan", help="shipped ukf params file to give")
+    p.add_argument(
+        "--mirror-average",
+        default="auto",
+        help="as the node's pso_lstm.mirror_average (auto, yes, no; default auto, the node's)",
+    )
     args = p.parse_args()
     ref = resources.files("sideslip_estimator").joinpath(f"data/ukf/{args.car}.yaml")
     net, meta = load_model(args.model)
@@ -37,7 +42,14 @@ def main() -> None:
         for run in runs:
             # car="given": the given file for every run, though the bags record their
             # own car (as a node left with another car's observer_params_file).
-            est = predict_run(net, meta, run, observer_params_file=str(wrong_file), car="given")
+            est = predict_run(
+                net,
+                meta,
+                run,
+                observer_params_file=str(wrong_file),
+                car="given",
+                mirror_average=args.mirror_average,
+            )
             base = kinematic(run, 20, meta.window_steps)
             truth = run.samples.beta_rad()[meta.window_steps - 1 :]
             ok = np.isfinite(est) & np.isfinite(base)
@@ -45,7 +57,8 @@ def main() -> None:
             base_mae.append(np.degrees(np.abs(base[ok] - truth[ok])).mean())
     ratio = np.array(model_mae) / np.array(base_mae)
     print(
-        f"{args.model} with {args.car}'s ukf file on {len(runs)} runs: mean run MAE "
+        f"{args.model} with {args.car}'s ukf file on {len(runs)} runs "
+        f"(mirror average {args.mirror_average}): mean run MAE "
         f"{np.mean(model_mae):.3f} deg (20-step kinematic {np.mean(base_mae):.3f}); worse "
         f"than it on {int(np.sum(ratio > 1))} runs, worst ratio {ratio.max():.2f}"
     )
