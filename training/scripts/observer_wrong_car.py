@@ -21,6 +21,7 @@ import numpy as np
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import kinematic, predict_run
 from sideslip_training.export import load_model
+from sideslip_training.inputs import add_mirror_average_argument
 
 
 def main() -> None:
@@ -28,11 +29,7 @@ def main() -> None:
     p.add_argument("model")
     p.add_argument("--data", default="data/held-out")
     p.add_argument("--car", default="paper_sedan", help="shipped ukf params file to give")
-    p.add_argument(
-        "--mirror-average",
-        default="auto",
-        help="as the node's pso_lstm.mirror_average (auto, yes, no; default auto, the node's)",
-    )
+    add_mirror_average_argument(p, "the network")
     args = p.parse_args()
     ref = resources.files("sideslip_estimator").joinpath(f"data/ukf/{args.car}.yaml")
     net, meta = load_model(args.model)
