@@ -84,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.start_at < 1.0:
         p.error(f"--start-at must be in [0, 1), got {args.start_at}")
     report: dict[str, dict] = {}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     for model in args.model:
         for folder in args.data:
             got = score(model, folder, args.jobs, args.start_at)
@@ -91,8 +92,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{model:45s} {folder:32s} mean MAE {got['mean_mae_deg']:.4f}  "
                   f"pooled {got['pooled_mae_deg']:.4f}  mean ME {got['mean_me_deg']:+.4f}",
                   flush=True)  # fmt: skip
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1) + "\n")
+            # After every folder: a long run stopped part way keeps what it scored.
+            args.out.write_text(json.dumps(report, indent=1) + "\n")
     return 0
 
 
