@@ -303,8 +303,9 @@ def compare(fit_runs, score_runs, check_runs, u, args, w, seed):  # type: ignore
         t1 = time.time()
         net, e_rms = train_sigma_net(train, stop, w, hidden, args.epochs, seed)
         k = scaled([net_sigma(net, e_rms, r, w) for r in scale_set], scale_set)
+        print(f"  σ network, {hidden} units: trained in {time.time() - t1:.0f} s")
         record(
-            f"σ network, {hidden} units ({time.time() - t1:.0f} s)",
+            f"σ network, {hidden} units",
             lambda r, k=k, net=net, e_rms=e_rms: k * net_sigma(net, e_rms, r, w),
         )
     return rows
