@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from sideslip_msgs_py.artifact import zscore
-from sideslip_msgs_py.uncertainty import Uncertainty
+from sideslip_msgs_py.uncertainty import Uncertainty, terms
 from sideslip_training.calibrate import scale_of_ratios
 from sideslip_training.dataset import load_runs
 from sideslip_training.evaluate import predict_run
@@ -45,8 +45,8 @@ from sideslip_training.init_model import resolve
 from sideslip_training.inputs import InputSpec
 from sideslip_training.model import ModelConfig, SideslipNet
 
-Z = 1.959963984540054
-TERMS = ("1", "1/v2", "ay2", "bdot2")
+sys.path.insert(0, str(Path(__file__).parent))
+from interval_terms import Z, fit  # a sibling script: the same likelihood fit
 
 
 def gather(model: str, folders: list[str], inputs: bool = True) -> list[dict]:
@@ -68,21 +68,12 @@ def gather(model: str, folders: list[str], inputs: bool = True) -> list[dict]:
             x = zscore(spec.inputs(run), meta.feature_mean, meta.feature_std).astype(np.float32)
         est = predict_run(net, meta, run, mirror_average="auto")
         s = run.samples
-        v = np.maximum(s.x_v_mps, 1.0)
         entry = index[Path(str(run.bag)).name]
         out.append(
             {
                 "x": None if x is None else np.nan_to_num(x),
                 "err": est - s.beta_rad()[w - 1 :],
-                "terms": np.stack(
-                    [
-                        np.ones(est.size),
-                        1.0 / v[w - 1 :] ** 2,
-                        s.y_a_mps2[w - 1 :] ** 2,
-                        (s.y_a_mps2 / v - s.yaw_rate_radps)[w - 1 :] ** 2,
-                    ],
-                    axis=1,
-                ),
+                "terms": terms(s.x_v_mps[w - 1 :], s.y_a_mps2[w - 1 :], s.yaw_rate_radps[w - 1 :]),
                 "vehicle": entry["vehicle"],
                 "mu": float(entry["mu"]),
             }
@@ -156,20 +147,11 @@ def net_sigma(net: SideslipNet, e_rms: float, run: dict, w: int) -> np.ndarray:
 
 
 def fit_terms(runs: list[dict]) -> np.ndarray:
-    from scipy.optimize import minimize
-
+    """The four terms' coefficients by Gaussian likelihood on ``runs``' finite errors."""
     t = np.concatenate([r["terms"] for r in runs])
     e2 = np.concatenate([r["err"] for r in runs]) ** 2
     ok = np.isfinite(e2)
-    t, e2 = t[ok], e2[ok]
-    start = np.log(np.mean(e2) / (t.shape[1] * np.maximum(t.mean(axis=0), 1e-12)))
-
-    def nll(log_c: np.ndarray) -> float:
-        var = t @ np.exp(log_c)
-        return float(0.5 * np.mean(np.log(var) + e2 / var))
-
-    res = minimize(nll, start, method="Nelder-Mead", options={"maxiter": 8000, "fatol": 1e-12})
-    return np.exp(res.x)
+    return fit(t[ok], e2[ok])
 
 
 def cells(score: list[dict], sigma: list[np.ndarray]) -> tuple[int, int, float, list]:
