@@ -9,7 +9,8 @@ benchmark will score, made without it.
 
 ``--imu-frame body`` / ``--imu-position X Y``: the same drives read by an IMU in the body
 frame or away from the CG (:mod:`sideslip_sim.imu_mounting`); ``--bank PCT``: on a road
-falling to the right by PCT % (as ``sideslip-generate --bank``).
+falling to the right by PCT % (as ``sideslip-generate --bank``); ``--noise-seed N``: the
+same drives with other draws of the sensor noise (0, the default, is the benchmark's).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--imu-frame", choices=("level", "body"), default="level")
     p.add_argument("--imu-position", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
     p.add_argument("--bank", type=float, default=0.0, metavar="PCT", help="road crossfall [%%]")
+    p.add_argument("--noise-seed", type=int, default=0, help="seed of the sensor noise's draws")
     args = p.parse_args(argv)
     imu = ImuMounting(tuple(args.imu_position), args.imu_frame)
     fleet = sample_fleet(VAL_CARS, VAL_SEED, exclude_digests=held_out_digests()).vehicles
@@ -43,8 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.bank:
         runs = [on_bank(r, args.bank) for r in runs]
     prepare_output(args.out, force=True)
-    generate(runs, args.out, noise="paper", preset_name="validation-benchmark", jobs=args.jobs,
-             imu=imu)  # fmt: skip
+    generate(runs, args.out, noise="paper", seed=args.noise_seed,
+             preset_name="validation-benchmark", jobs=args.jobs, imu=imu)  # fmt: skip
     return 0
 
 
