@@ -11,6 +11,7 @@ data, a feature the bags lack, an existing output) is one line on stderr and exi
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
@@ -23,7 +24,8 @@ from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
 
 from .cli_errors import EXIT_BAD_INPUT, CliError
-from .dataset import DatasetError
+from .cross_validation import CrossValidation, cross_validate, fold_runs
+from .dataset import DatasetError, Run
 from .evaluate import json_ready
 from .export import export_model
 from .final_model import deployed_mirror, model_metadata, refit, wants_refit
@@ -60,6 +62,15 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     try:
         plan = plan_training(args, log)
         intervals = interval_mode(args.intervals, plan)
+        if args.folds != 1 and (args.pso or args.folds < 2):
+            raise CliError(
+                f"--folds {args.folds}: cross-validation takes 2 or more folds, and not "
+                "with --pso (each particle is selected on the validation split)"
+                if args.pso
+                else f"--folds must be 1 (the validation split) or >= 2, got {args.folds}"
+            )
+        if args.folds > 1:
+            fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)  # refuses early
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
         return _error(err, EXIT_BAD_INPUT)
     command = " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])])
@@ -69,7 +80,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     except CliError as err:  # --resume of a run started otherwise
         return _error(err, EXIT_BAD_INPUT)
     try:
-        result, pso_info = _train(args, plan, log)
+        result, pso_info, cv = _train(args, plan, log)
         fine_tuned_val_mae = result.best_val_mae_deg
         _toward_start(result, plan, args.interpolate, log)
 
@@ -90,7 +101,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         uncertainty, calibration = calibrate_selection(
             intervals, plan, result.model, metadata(result, {}), args.seed, log, args.intervals
         )
-        result, metrics = _validate_and_refit(args, plan, config["split"], result, log)
+        result, metrics = _validate_and_refit(args, plan, config["split"], result, log, cv)
         if calibration is not None:
             metrics["interval_calibration"] = calibration
         if args.interpolate < 1.0 and result.best_epoch > 0:
@@ -117,15 +128,16 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
 def _train(
     args: argparse.Namespace, plan: TrainPlan, log: Callable[[str], None]
-) -> tuple[TrainResult, dict[str, Any] | None]:
-    """The selected training and the PSO record: PSO's best particle, or one training
-    (from --init's weights when fine-tuning)."""
+) -> tuple[TrainResult, dict[str, Any] | None, CrossValidation | None]:
+    """The selected training, the PSO record and the cross-validation: PSO's best
+    particle, or one training (from --init's weights when fine-tuning), its epoch count
+    chosen by --folds when given."""
     data = plan.data
     if args.pso:
         from .pso import PsoError
 
         try:
-            return run_pso(
+            result, pso_info = run_pso(
                 args,
                 plan.profile,
                 plan.base,
@@ -137,15 +149,84 @@ def _train(
             )
         except PsoError as err:  # e.g. a damaged or foreign pso_state.json on --resume
             raise _Stop(str(err), EXIT_BAD_INPUT) from err
+        return result, pso_info, None
     try:
-        result = _train_one(plan, args.quiet)
+        if args.folds > 1:
+            cv = _cross_validate(args, plan, log)
+            return _train_chosen(plan, cv, args.quiet), None, cv
+        return _train_one(plan, args.quiet), None, None
     except ValueError as err:  # diverged: no epoch to export
         raise _Stop(str(err), 1) from err
-    return result, None
 
 
-def _train_one(plan: TrainPlan, quiet: bool) -> TrainResult:
-    """One training with a progress bar over the epochs (on stderr, off with --quiet)."""
+def _cross_validate(
+    args: argparse.Namespace, plan: TrainPlan, log: Callable[[str], None]
+) -> CrossValidation:
+    """--folds: the epoch count chosen out of fold over the training and validation
+    runs (the rehearsal trains in every fold); the record in cross_validation.json."""
+    data = plan.data
+    log(f"cross-validation: {args.folds} folds by {data.split}")
+    try:
+        cv = cross_validate(
+            plan.base,
+            _cv_runs(plan),
+            folds=args.folds,
+            mode=data.split,
+            seed=args.seed,
+            spec=plan.spec,
+            normalizer=data.normalizer,
+            window=plan.window,
+            stride=data.stride,
+            rehearsal=data.rehearsal_runs,
+            init_state=plan.init_state(),
+            deployed_mirror=deployed_mirror(plan),
+            log=log,
+        )
+    except CliError as err:
+        raise _Stop(str(err), EXIT_BAD_INPUT) from err
+    text = json.dumps(json_ready(cv.summary()), indent=2, allow_nan=False)
+    (plan.run_dir / "cross_validation.json").write_text(text + "\n")
+    start = "" if cv.start_mae_deg is None else f" (the start: {cv.start_mae_deg:.4f})"
+    log(
+        f"cross-validation chose {cv.epochs} epoch(s): pooled out-of-fold MAE "
+        f"{cv.best_mae_deg:.4f} deg{start}"
+    )
+    return cv
+
+
+def _cv_runs(plan: TrainPlan) -> list[Run]:
+    """The runs --folds deals out: training and validation, mirrored as the training
+    runs are, without the rehearsal (which trains in every fold)."""
+    rehearsal = {id(r) for r in plan.data.rehearsal_runs}
+    return [r for r in plan.data.refit_runs if id(r) not in rehearsal]
+
+
+def _train_chosen(plan: TrainPlan, cv: CrossValidation, quiet: bool) -> TrainResult:
+    """The training part trained for the epoch count cross-validation chose (the model
+    the intervals are calibrated with and the validation split scores, before the
+    refit), or the start model itself when it chose none."""
+    if cv.epochs == 0:
+        assert plan.init is not None and cv.start_mae_deg is not None
+        return TrainResult(
+            model=copy.deepcopy(plan.init.net).cpu().eval(),
+            best_epoch=0,
+            best_val_mae_deg=cv.start_mae_deg,
+            start_val_mae_deg=cv.start_mae_deg,
+            stopped_early=True,
+        )
+    chosen = replace(plan, base=replace(plan.base, max_epochs=cv.epochs))
+    result = _train_one(chosen, quiet, keep_last=True)
+    # Still improving only when the chosen count is the longest fold's last epoch at
+    # the profile's limit: then more epochs might have been better out of fold.
+    result.stopped_early = not (
+        cv.epochs == len(cv.curve) and len(cv.curve) >= plan.base.max_epochs
+    )
+    return result
+
+
+def _train_one(plan: TrainPlan, quiet: bool, *, keep_last: bool = False) -> TrainResult:
+    """One training with a progress bar over the epochs (on stderr, off with --quiet);
+    ``keep_last``: all ``max_epochs``, the last one kept (an epoch count chosen before)."""
     from tqdm import tqdm
 
     cfg, data = plan.base, plan.data
@@ -163,6 +244,7 @@ def _train_one(plan: TrainPlan, quiet: bool) -> TrainResult:
             data.normalizer,
             on_epoch=on_epoch,
             init_state=plan.init_state(),
+            keep_last=keep_last,
             deployed_mirror=deployed_mirror(plan),
         )
     finally:
@@ -175,12 +257,19 @@ def _validate_and_refit(
     split: str,
     result: TrainResult,
     log: Callable[[str], None],
+    cv: CrossValidation | None = None,
 ) -> tuple[TrainResult, dict[str, Any]]:
     """Write history.json and score the selected training on validation; when refitting,
-    the model trained again on training + validation (refit_history.json)."""
+    the model trained again on training + validation (refit_history.json). After
+    cross-validation the validation split scores the model trained on the training part
+    for the chosen count, and ``cross_validation`` holds what chose it."""
     (plan.run_dir / "history.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     data = plan.data
     metrics = {**val_metrics(result, data.val, data.normalizer), "best_epoch": result.best_epoch}
+    if cv is not None:
+        metrics["cross_validation"] = {
+            k: v for k, v in cv.summary().items() if k not in ("pooled_curve_deg", "per_fold")
+        }
     start_averaged, averaged = deployed_mirror(plan)
     if plan.init is not None:
         # How the handover scored them: the epochs as the file will run, the start
@@ -189,15 +278,22 @@ def _validate_and_refit(
     if result.best_epoch == 0:
         # Always said: the fine-tuning made the model worse on validation at every epoch.
         how = " (alone, nor averaged with its mirror image)" if start_averaged else ""
+        where, best = (
+            ("on validation", min(r.val_mae_deg for r in result.history))
+            if cv is None
+            else (f"out of fold ({len(cv.folds)} folds, pooled)", min(cv.curve))
+        )
         print(
             f"sideslip-train: warning: no epoch of fine-tuning beat the starting model"
-            f"{how} on validation (MAE {result.start_val_mae_deg:.4f} deg at the start, "
-            f"{min(r.val_mae_deg for r in result.history):.4f} at best): kept its weights "
+            f"{how} {where} (MAE {result.start_val_mae_deg:.4f} deg at the start, "
+            f"{best:.4f} at best): kept its weights "
             "(try a lower --learning-rate, or more data)",
             file=sys.stderr,
         )
         metrics["kept_start_weights"] = True
-    elif wants_refit(args.refit, pso=args.pso, val_given=bool(args.val), split=split):
+    elif wants_refit(
+        args.refit, pso=args.pso, val_given=bool(args.val), split=split, folds=args.folds
+    ):
         # The epoch count chosen on validation, now on all the data before the test part.
         result, refit_history = refit(result, plan, log, init_state=plan.init_state())
         _toward_start(result, plan, args.interpolate, log)

@@ -13,7 +13,8 @@ from collections.abc import Sequence
 from .dataset import DatasetError, Run, slice_samples
 
 
-def _split_key(seed: int, bag: str) -> str:
+def bag_rank(seed: int, bag: str) -> str:
+    """The rank key of ``bag`` in a seeded split: its place in a sort by this key."""
     # A hash rank, not a shuffled list: deterministic across numpy versions and input
     # order, and adding a bag moves no other bag across the split unless the count changes.
     return hashlib.sha256(f"{seed}\x00{bag}".encode()).hexdigest()
@@ -44,7 +45,7 @@ def split_runs(runs: Sequence[Run], val_fraction: float, seed: int) -> tuple[lis
         )
         raise DatasetError(msg)
     n_val = min(max(round(val_fraction * len(bags)), 1), len(bags) - 1)
-    val_bags = set(sorted(bags, key=lambda b: _split_key(seed, b))[:n_val])
+    val_bags = set(sorted(bags, key=lambda b: bag_rank(seed, b))[:n_val])
     return [r for r in runs if r.bag not in val_bags], [r for r in runs if r.bag in val_bags]
 
 

@@ -96,6 +96,18 @@ def train_parser() -> argparse.ArgumentParser:
         "split is in time (the validation part is then the stretch before the test)",
     )
     p.add_argument(
+        "--folds",
+        type=int,
+        default=1,
+        metavar="K",
+        help="choose the epoch count (and, with --init, whether to keep the start) by "
+        "K-fold cross-validation over the training and validation bags (by bag; in time: "
+        "K blocks of each run) instead of on the validation split alone, then train on "
+        "the training part for that count and refit on all (unless --refit no): K + 2 "
+        "trainings, for a few minutes of data, where one validation split is a minute "
+        "(default 1: the validation split; not with --pso)",
+    )
+    p.add_argument(
         "--intervals",
         choices=list(INTERVAL_POLICIES),
         default="auto",

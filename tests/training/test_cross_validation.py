@@ -1,0 +1,135 @@
+"""``sideslip-train --folds K``: the epoch count (and, fine-tuning, whether to keep the
+start) chosen out of fold over every training and validation bag, not on one split."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sideslip_training.cli import train_main
+from sideslip_training.cli_errors import CliError
+from sideslip_training.cross_validation import (
+    FoldRecord,
+    choose_epochs,
+    fold_runs,
+    pooled_curve,
+)
+from sideslip_training.dataset import Run
+
+TINY = ["--profile", "quick", "--device", "cpu", "--quiet", "--mirror", "no"]
+
+
+def _runs(make_arrays, bags: list[str], per_bag: int = 1, n: int = 500) -> list[Run]:
+    return [
+        Run(name=f"{b}/{i}", path=Path(b), samples=make_arrays(n, seed=j), bag=b)
+        for j, b in enumerate(bags)
+        for i in range(per_bag)
+    ]
+
+
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(bags=st.integers(3, 12), folds=st.integers(2, 6), seed=st.integers(0, 5))
+def test_folds_by_bag_hold_every_bag_once_and_whole(
+    make_arrays, bags: int, folds: int, seed: int
+) -> None:
+    names = [f"bag{i}" for i in range(bags)]
+    runs = _runs(make_arrays, names, per_bag=2, n=50)
+    if bags < folds:
+        with pytest.raises(CliError, match=f"--folds {folds} needs at least {folds} bags"):
+            fold_runs(runs, folds, "bag", seed)
+        return
+    groups = fold_runs(runs, folds, "bag", seed)
+    assert len(groups) == folds and all(groups)
+    assert sorted(r.name for g in groups for r in g) == sorted(r.name for r in runs)
+    fold_of_bag = {r.bag: k for k, g in enumerate(groups) for r in g}
+    assert all(fold_of_bag[r.bag] == k for k, g in enumerate(groups) for r in g)  # whole bags
+    sizes = [len({r.bag for r in g}) for g in groups]
+    assert max(sizes) - min(sizes) <= 1
+    assert fold_runs(list(reversed(runs)), folds, "bag", seed)[0][0].bag in {
+        r.bag for r in groups[0]
+    }  # the input order does not move bags between folds
+
+
+def test_folds_in_time_are_consecutive_blocks_that_cover_each_run(make_arrays) -> None:
+    runs = _runs(make_arrays, ["long"], n=1003)
+    groups = fold_runs(runs, 4, "time", 0)
+    stamps = np.concatenate([g[0].samples.stamp_ns for g in groups])
+    np.testing.assert_array_equal(stamps, runs[0].samples.stamp_ns)
+    assert [g[0].name for g in groups] == [f"long/0#{k}" for k in range(4)]
+    assert {len(g[0]) for g in groups} <= {250, 251}
+
+
+def test_a_fold_that_stopped_early_counts_with_its_last_epoch() -> None:
+    folds = [
+        FoldRecord(1, 1, 100, 0.5, [0.4, 0.3, 0.35], 1.0),
+        FoldRecord(2, 1, 300, 0.5, [0.6, 0.5, 0.45, 0.44, 0.6], 1.0),
+    ]
+    curve = pooled_curve(folds)
+    assert curve == pytest.approx([0.55, 0.45, 0.425, 0.4175, 0.5375])
+    assert choose_epochs(curve, start_mae_deg=0.5) == 4
+    assert choose_epochs(curve, start_mae_deg=0.41) == 0  # no count beats the start
+    assert choose_epochs(curve, start_mae_deg=None) == 4  # from scratch: some count
+
+
+def test_fine_tuning_with_folds_chooses_out_of_fold_and_refits_on_all(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    for i in range(5):
+        write_arrays(f"drive{i}", make_arrays(1200, seed=i), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--init", "fleet_lstm_paper", "--folds", "3"]
+    assert train_main([*args, "--max-epochs", "2", "--out", str(out), *TINY]) == 0
+    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+    assert cv["folds"] == 3 and [f["fold"] for f in cv["per_fold"]] == [1, 2, 3]
+    assert sum(f["val_runs"] for f in cv["per_fold"]) == 5  # every bag validated once
+    assert all(f["start_mae_deg"] > 0 for f in cv["per_fold"])
+    assert cv["start_pooled_mae_deg"] > 0 and 1 <= len(cv["pooled_curve_deg"]) <= 2
+    metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
+    assert metrics["cross_validation"]["epochs"] == cv["epochs"] == metrics["best_epoch"]
+    if cv["epochs"]:
+        assert metrics["refit_epochs"] == cv["epochs"]  # trained again on all five bags
+    else:
+        assert metrics["kept_start_weights"] is True
+
+
+def test_training_from_scratch_with_folds_trains_the_chosen_count(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    for i in range(4):
+        write_arrays(f"drive{i}", make_arrays(1000, seed=i), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--folds", "2", "--max-epochs", "3", "--refit", "no"]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+    history = json.loads((tmp_path / "m.run" / "history.json").read_text())
+    assert cv["start_pooled_mae_deg"] is None and cv["epochs"] >= 1
+    assert history["epochs_run"] == cv["epochs"] == history["best_epoch"]
+    assert not (tmp_path / "m.run" / "refit_history.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--folds", "0"], "--folds must be 1 (the validation split) or >= 2, got 0"),
+        (["--folds", "3", "--pso"], "not with --pso"),
+        (["--folds", "4"], "--folds 4 needs at least 4 bags to deal out, got 3"),
+    ],
+)
+def test_folds_that_cannot_be_cross_validated_are_refused_in_one_line(
+    make_arrays, write_arrays, tmp_path: Path, capsys, extra: list[str], message: str
+) -> None:
+    for i in range(3):
+        write_arrays(f"drive{i}", make_arrays(800, seed=i), folder=tmp_path / "rec")
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--split", "bag"]
+    code = train_main([*args, *extra, "--out", str(tmp_path / "m.safetensors"), *TINY])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and message in err[-1] and err[-1].startswith("sideslip-train: error:")
+    assert not (tmp_path / "m.safetensors").exists()
