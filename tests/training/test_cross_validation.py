@@ -133,3 +133,24 @@ def test_folds_that_cannot_be_cross_validated_are_refused_in_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and message in err[-1] and err[-1].startswith("sideslip-train: error:")
     assert not (tmp_path / "m.safetensors").exists()
+
+
+def test_when_no_epoch_count_beats_the_start_out_of_fold_the_start_is_exported(
+    make_arrays, write_arrays, tmp_path: Path, capsys
+) -> None:
+    from sideslip_msgs_py.artifact import read_artifact
+    from sideslip_training.init_model import resolve
+
+    for i in range(4):
+        write_arrays(f"drive{i}", make_arrays(1000, seed=i), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--init", "fleet_lstm_paper", "--folds", "2"]
+    args += ["--learning-rate", "3", "--max-epochs", "2"]  # a rate that only makes it worse
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+    assert "out of fold (2 folds, pooled)" in capsys.readouterr().err
+    metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
+    assert metrics["kept_start_weights"] is True and metrics["best_epoch"] == 0
+    assert metrics["cross_validation"]["kept_start"] is True
+    start = read_artifact(resolve("fleet_lstm_paper"))[0]
+    kept = read_artifact(out)[0]
+    assert all(np.array_equal(kept[k], start[k]) for k in start)
