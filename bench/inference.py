@@ -233,6 +233,7 @@ def main(argv: list[str] | None = None) -> int:
             SHIPPED_DIR / "fleet_ukf_measurable.safetensors",
             SHIPPED_DIR / "fleet_ukf_merged.safetensors",
             SHIPPED_DIR / "fleet_ukf_ensemble.safetensors",
+            SHIPPED_DIR / "fleet_ukf_ensemble_disturbance.safetensors",
         ],
         help="exported models to time as well (default: the shipped ones)",
     )
@@ -246,7 +247,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.mirror_average_only:
         with tempfile.TemporaryDirectory(prefix="sideslip-bench-") as tmp:
             names = ("fleet_lstm_paper", "fleet_ukf_paper", "fleet_ukf_measurable")
-            models = [SHIPPED_DIR / f"{n}.safetensors" for n in (*names, "fleet_ukf_ensemble")]
+            ensembles = ("fleet_ukf_ensemble", "fleet_ukf_ensemble_disturbance")
+            models = [SHIPPED_DIR / f"{n}.safetensors" for n in (*names, *ensembles)]
             timings = bench_mirror_average(models, Path(tmp), args.calls, args.warmup, 1)
         emit_report(
             {
