@@ -18,6 +18,7 @@ from sideslip_training.cross_validation import (
     choose_epochs,
     fold_runs,
     pooled_curve,
+    pooled_start,
 )
 from sideslip_training.dataset import Run
 
@@ -154,3 +155,44 @@ def test_when_no_epoch_count_beats_the_start_out_of_fold_the_start_is_exported(
     start = read_artifact(resolve("fleet_lstm_paper"))[0]
     kept = read_artifact(out)[0]
     assert all(np.array_equal(kept[k], start[k]) for k in start)
+
+
+def test_the_starts_bar_pools_each_way_of_running_it_then_takes_the_better() -> None:
+    """As the handover on one validation set: alone pooled, averaged pooled, the lower;
+    not the better way per fold, a bar no single way of running the start reaches."""
+    folds = [
+        FoldRecord(1, 1, 100, 0.1, [0.2], 1.0, {"alone": 0.1, "averaged": 0.3}),
+        FoldRecord(2, 1, 100, 0.1, [0.2], 1.0, {"alone": 0.3, "averaged": 0.1}),
+    ]
+    assert pooled_start(folds) == pytest.approx(0.2)
+    assert pooled_start([FoldRecord(1, 1, 10, None, [0.2], 1.0)]) is None  # from scratch
+
+
+def test_an_epoch_without_a_finite_pooled_mae_is_never_chosen() -> None:
+    assert choose_epochs([float("nan"), 0.3, 0.2, float("nan")], None) == 3
+    with pytest.raises(ValueError, match="diverged"):
+        choose_epochs([float("nan")], 0.5)
+
+
+def test_folds_in_time_over_one_recording_cross_validate_its_blocks(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    write_arrays("long", make_arrays(3000, seed=1), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--folds", "3", "--max-epochs", "2", "--split", "time"]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+    # Each fold: a block of the training part and one of the validation part.
+    assert [f["val_runs"] for f in cv["per_fold"]] == [2, 2, 2]
+
+
+def test_folds_too_short_for_a_window_are_refused_before_anything_is_written(
+    make_arrays, write_arrays, tmp_path: Path, capsys
+) -> None:
+    write_arrays("short", make_arrays(1000, seed=1), folder=tmp_path / "rec")
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--split", "time"]
+    args += ["--folds", "20", "--out", str(tmp_path / "m.safetensors")]
+    assert train_main([*args, *TINY]) == 2
+    assert "fold 1 has no run of 100 samples" in capsys.readouterr().err
+    assert not (tmp_path / "m.run").exists()

@@ -24,7 +24,7 @@ from sideslip_msgs_py.artifact import ArtifactError, ModelMetadata
 from sideslip_msgs_py.features import FeatureError
 
 from .cli_errors import EXIT_BAD_INPUT, CliError
-from .cross_validation import CrossValidation, cross_validate, fold_runs
+from .cross_validation import CrossValidation, check_windows, cross_validate, fold_runs
 from .dataset import DatasetError, Run
 from .evaluate import json_ready
 from .export import export_model
@@ -69,8 +69,9 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                 if args.pso
                 else f"--folds must be 1 (the validation split) or >= 2, got {args.folds}"
             )
-        if args.folds > 1:
-            fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)  # refuses early
+        if args.folds > 1:  # refused before the run folder is made
+            groups = fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)
+            check_windows(groups, plan.window)
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
         return _error(err, EXIT_BAD_INPUT)
     command = " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])])
@@ -166,13 +167,24 @@ def _cross_validate(
     runs (the rehearsal trains in every fold); the record in cross_validation.json."""
     data = plan.data
     log(f"cross-validation: {args.folds} folds by {data.split}")
+    groups = fold_runs(_cv_runs(plan), args.folds, data.split, args.seed)
+    if data.split == "time" and plan.spec.needs_observer:
+        # Blocks are runs of their own: their observer columns, in worker processes now
+        # rather than one at a time inside the first fold.
+        from . import observer
+
+        observer.precompute(
+            [r for g in groups for r in g],
+            plan.spec.observer,
+            plan.spec.observer_params_file,
+            car=plan.spec.car,
+            jobs=args.workers,
+            progress=not args.quiet,
+        )
     try:
         cv = cross_validate(
             plan.base,
-            _cv_runs(plan),
-            folds=args.folds,
-            mode=data.split,
-            seed=args.seed,
+            groups,
             spec=plan.spec,
             normalizer=data.normalizer,
             window=plan.window,

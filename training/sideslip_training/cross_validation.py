@@ -12,8 +12,12 @@ epoch count, and, when fine-tuning, whether any epoch beats the start at all (ep
 The folds: whole bags (a bag and its mirror image together), assigned by a seeded hash
 rank of the bag name dealt round-robin, as :func:`~.splits.split_runs` ranks them; with
 a split in time (one long recording) every run is cut into K consecutive blocks, block
-k of each run going to fold k. ``--rehearse`` runs train in every fold and validate in
-none. The z-score statistics stay the training's (the start model's when fine-tuning).
+k of each run going to fold k (each block a run of its own, as the split in time makes
+them: the UKF observer starts afresh at its first sample). Where the training mirrors
+its runs, a held-out fold holds its runs' mirror images too, so that no fold is scored
+on one turning direction only. ``--rehearse`` runs train in every fold and validate in
+none. The z-score statistics stay the training's (the start model's with
+``--normalization keep``).
 
 Each fold stops early on its own fold (the profile's patience); past its last epoch a
 fold counts with its last epoch's MAE, which is no better than its best, so an epoch
@@ -49,6 +53,8 @@ class FoldRecord:
     start_mae_deg: float | None
     epoch_mae_deg: list[float]
     seconds: float
+    start_mae_forms: dict[str, float] = field(default_factory=dict)
+    """The start's MAE per way the node may run it (``alone``, ``averaged``)."""
 
 
 @dataclass
@@ -125,22 +131,51 @@ def pooled_curve(folds: Sequence[FoldRecord]) -> list[float]:
     return curve
 
 
+def pooled_start(folds: Sequence[FoldRecord]) -> float | None:
+    """The start's pooled MAE: each way of running it (alone, mirror-averaged) pooled
+    over the folds, the lower of the two, as the handover's bar on one validation set;
+    None from scratch or when a fold has no finite figure."""
+    forms = set.intersection(*(set(f.start_mae_forms) for f in folds)) if folds else set()
+    total = sum(f.val_windows for f in folds)
+    pooled = [sum(f.val_windows * f.start_mae_forms[form] for f in folds) / total for form in forms]
+    finite = [x for x in pooled if math.isfinite(x)]
+    return min(finite) if finite and len(finite) == len(pooled) else None
+
+
 def choose_epochs(curve: Sequence[float], start_mae_deg: float | None) -> int:
     """The epoch count of the lowest pooled MAE; 0 (keep the start) when fine-tuning and
-    no count is below the start's pooled MAE."""
-    best = min(range(len(curve)), key=lambda e: (curve[e], e))
+    no count is below the start's pooled MAE.
+
+    Raises:
+        ValueError: no epoch count with a finite pooled MAE (the trainings diverged).
+    """
+    finite = [e for e in range(len(curve)) if math.isfinite(curve[e])]
+    if not finite:
+        raise ValueError("no epoch with a finite out-of-fold MAE: training diverged")
+    best = min(finite, key=lambda e: (curve[e], e))
     if start_mae_deg is not None and not curve[best] < start_mae_deg:
         return 0
     return best + 1
 
 
+def check_windows(groups: Sequence[Sequence[Run]], window: int) -> None:
+    """Refuse folds of which one has no run of ``window`` samples (before any training).
+
+    Raises:
+        CliError: naming the fold and the window.
+    """
+    for k, held in enumerate(groups):
+        if not any(len(r) >= window for r in held):
+            raise CliError(
+                f"--folds {len(groups)}: fold {k + 1} has no run of {window} samples (one "
+                "window): give fewer folds or longer runs"
+            )
+
+
 def cross_validate(
     cfg: TrainConfig,
-    runs: Sequence[Run],
+    groups: Sequence[Sequence[Run]],
     *,
-    folds: int,
-    mode: str,
-    seed: int,
     spec: InputSpec,
     normalizer: Normalizer,
     window: int,
@@ -150,13 +185,15 @@ def cross_validate(
     deployed_mirror: tuple[bool, bool] = (False, False),
     log: Callable[[str], None] = lambda _: None,
 ) -> CrossValidation:
-    """Train once per fold (on the other folds plus ``rehearsal``, from ``init_state``
-    when fine-tuning) and choose the epoch count on the pooled out-of-fold MAE.
+    """Train once per fold of ``groups`` (:func:`fold_runs`; on the other folds plus
+    ``rehearsal``, from ``init_state`` when fine-tuning) and choose the epoch count on
+    the pooled out-of-fold MAE.
 
     Raises:
         CliError: a fold without a window to validate on or train on.
+        ValueError: every fold's training diverged.
     """
-    groups = fold_runs(runs, folds, mode, seed)
+    folds = len(groups)
     cv = CrossValidation()
     for k, held in enumerate(groups):
         others = [r for j, g in enumerate(groups) if j != k for r in g]
@@ -182,6 +219,7 @@ def cross_validate(
             start_mae_deg=result.start_val_mae_deg,
             epoch_mae_deg=[r.val_mae_deg for r in result.history],
             seconds=result.seconds,
+            start_mae_forms=dict(result.start_val_mae_forms),
         )
         cv.folds.append(record)
         start = "" if record.start_mae_deg is None else f", start {record.start_mae_deg:.4f}"
@@ -193,9 +231,6 @@ def cross_validate(
         )
     cv.curve = pooled_curve(cv.folds)
     if init_state is not None:
-        starts = [(f.val_windows, f.start_mae_deg) for f in cv.folds]
-        if all(s is not None and math.isfinite(s) for _, s in starts):
-            total = sum(n for n, _ in starts)
-            cv.start_mae_deg = sum(n * float(s or 0.0) for n, s in starts) / total
+        cv.start_mae_deg = pooled_start(cv.folds)
     cv.epochs = choose_epochs(cv.curve, cv.start_mae_deg)
     return cv

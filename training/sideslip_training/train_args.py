@@ -102,7 +102,8 @@ def train_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="choose the epoch count (and, with --init, whether to keep the start) by "
         "K-fold cross-validation over the training and validation bags (by bag; in time: "
-        "K blocks of each run) instead of on the validation split alone, then train on "
+        "K blocks of each run; a held-out fold is scored on its runs' mirror images too "
+        "when the training mirrors) instead of on the validation split alone, then train on "
         "the training part for that count and refit on all (unless --refit no): K + 2 "
         "trainings, for a few minutes of data, where one validation split is a minute "
         "(default 1: the validation split; not with --pso)",
