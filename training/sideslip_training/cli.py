@@ -69,7 +69,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                 if args.pso
                 else f"--folds must be 1 (the validation split) or >= 2, got {args.folds}"
             )
-        if args.folds > 1:  # refused before the run folder is made
+        groups = None
+        if args.folds > 1:  # dealt, and refused, before the run folder is made
             groups = fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)
             check_windows(groups, plan.window)
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
@@ -81,7 +82,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     except CliError as err:  # --resume of a run started otherwise
         return _error(err, EXIT_BAD_INPUT)
     try:
-        result, pso_info, cv = _train(args, plan, log)
+        result, pso_info, cv = _train(args, plan, log, groups)
         fine_tuned_val_mae = result.best_val_mae_deg
         _toward_start(result, plan, args.interpolate, log)
 
@@ -128,11 +129,14 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _train(
-    args: argparse.Namespace, plan: TrainPlan, log: Callable[[str], None]
+    args: argparse.Namespace,
+    plan: TrainPlan,
+    log: Callable[[str], None],
+    groups: list[list[Run]] | None = None,
 ) -> tuple[TrainResult, dict[str, Any] | None, CrossValidation | None]:
     """The selected training, the PSO record and the cross-validation: PSO's best
     particle, or one training (from --init's weights when fine-tuning), its epoch count
-    chosen by --folds when given."""
+    chosen out of fold over ``groups`` (--folds) when given."""
     data = plan.data
     if args.pso:
         from .pso import PsoError
@@ -152,8 +156,8 @@ def _train(
             raise _Stop(str(err), EXIT_BAD_INPUT) from err
         return result, pso_info, None
     try:
-        if args.folds > 1:
-            cv = _cross_validate(args, plan, log)
+        if groups is not None:
+            cv = _cross_validate(args, plan, log, groups)
             return _train_chosen(plan, cv, args.quiet), None, cv
         return _train_one(plan, args.quiet), None, None
     except ValueError as err:  # diverged: no epoch to export
@@ -161,13 +165,16 @@ def _train(
 
 
 def _cross_validate(
-    args: argparse.Namespace, plan: TrainPlan, log: Callable[[str], None]
+    args: argparse.Namespace,
+    plan: TrainPlan,
+    log: Callable[[str], None],
+    groups: list[list[Run]],
 ) -> CrossValidation:
-    """--folds: the epoch count chosen out of fold over the training and validation
-    runs (the rehearsal trains in every fold); the record in cross_validation.json."""
+    """--folds: the epoch count chosen out of fold over ``groups``, the training and
+    validation runs dealt into folds (the rehearsal trains in every fold); the record in
+    cross_validation.json."""
     data = plan.data
     log(f"cross-validation: {args.folds} folds by {data.split}")
-    groups = fold_runs(_cv_runs(plan), args.folds, data.split, args.seed)
     if data.split == "time" and plan.spec.needs_observer:
         # Blocks are runs of their own: their observer columns, in worker processes now
         # rather than one at a time inside the first fold.
