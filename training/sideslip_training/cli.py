@@ -69,6 +69,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
                 if args.pso
                 else f"--folds must be 1 (the validation split) or >= 2, got {args.folds}"
             )
+        if args.epochs is not None:
+            _check_epochs(args)
         groups = None
         if args.folds > 1:  # dealt, and refused, before the run folder is made
             groups = fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)
@@ -106,6 +108,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         result, metrics = _validate_and_refit(args, plan, config["split"], result, log, cv)
         if calibration is not None:
             metrics["interval_calibration"] = calibration
+        if args.epochs is not None:
+            metrics["fixed_epochs"] = args.epochs
         if args.interpolate < 1.0 and result.best_epoch > 0:
             metrics["interpolate"] = args.interpolate
             metrics["fine_tuned_val_mae_deg"] = fine_tuned_val_mae
@@ -159,6 +163,8 @@ def _train(
         if groups is not None:
             cv = _cross_validate(args, plan, log, groups)
             return _train_chosen(plan, cv, args.quiet), None, cv
+        if args.epochs is not None:
+            return _train_fixed(plan, args.epochs, args.quiet), None, None
         return _train_one(plan, args.quiet), None, None
     except ValueError as err:  # diverged: no epoch to export
         raise _Stop(str(err), 1) from err
@@ -243,6 +249,29 @@ def _train_chosen(plan: TrainPlan, cv: CrossValidation, quiet: bool) -> TrainRes
     return result
 
 
+def _check_epochs(args: argparse.Namespace) -> None:
+    """--epochs N: a count given, so nothing else may choose or cap it."""
+    if args.epochs < 1:
+        raise CliError(f"--epochs must be 1 or more, got {args.epochs}")
+    for given, name in ((args.pso, "--pso"), (args.folds != 1, "--folds"),
+                        (args.max_epochs is not None, "--max-epochs")):  # fmt: skip
+        if given:
+            raise CliError(
+                f"--epochs {args.epochs} with {name}: --epochs gives the count that "
+                f"{name} would choose or cap; give one of them"
+            )
+
+
+def _train_fixed(plan: TrainPlan, epochs: int, quiet: bool) -> TrainResult:
+    """--epochs: the training part trained for exactly ``epochs`` epochs, the last one
+    kept (the model the intervals are calibrated with and the validation split scores,
+    before the refit). Never "still improving": nothing was chosen."""
+    fixed = replace(plan, base=replace(plan.base, max_epochs=epochs))
+    result = _train_one(fixed, quiet, keep_last=True)
+    result.stopped_early = True
+    return result
+
+
 def _train_one(plan: TrainPlan, quiet: bool, *, keep_last: bool = False) -> TrainResult:
     """One training with a progress bar over the epochs (on stderr, off with --quiet);
     ``keep_last``: all ``max_epochs``, the last one kept (an epoch count chosen before)."""
@@ -311,7 +340,12 @@ def _validate_and_refit(
         )
         metrics["kept_start_weights"] = True
     elif wants_refit(
-        args.refit, pso=args.pso, val_given=bool(args.val), split=split, folds=args.folds
+        args.refit,
+        pso=args.pso,
+        val_given=bool(args.val),
+        split=split,
+        folds=args.folds,
+        fixed_epochs=args.epochs is not None,
     ):
         # The epoch count chosen on validation, now on all the data before the test part.
         result, refit_history = refit(result, plan, log, init_state=plan.init_state())

@@ -24,13 +24,23 @@ from .trainer import EpochRecord, TrainResult, train_model
 from .windows import WindowIndex
 
 
-def wants_refit(refit: str, *, pso: bool, val_given: bool, split: str, folds: int = 1) -> bool:
+def wants_refit(
+    refit: str,
+    *,
+    pso: bool,
+    val_given: bool,
+    split: str,
+    folds: int = 1,
+    fixed_epochs: bool = False,
+) -> bool:
     """Whether to refit (--refit ``yes``/``no``/``auto``); never after PSO, whose model
     is the best particle's weights. ``auto`` refits a split in time without --val
     bags (the validation part is then the stretch before the test, too good to leave
-    out), and after cross-validation (``folds`` > 1), whose epoch count was chosen for
-    training on (K − 1)/K of all the bags, not on the training part alone."""
-    auto = folds > 1 or (not val_given and split == "time")
+    out), after cross-validation (``folds`` > 1), whose epoch count was chosen for
+    training on (K − 1)/K of all the bags, not on the training part alone, and after
+    ``--epochs`` (``fixed_epochs``): the validation split chose nothing, so holding it
+    out of the final model buys nothing."""
+    auto = folds > 1 or fixed_epochs or (not val_given and split == "time")
     return not pso and (refit == "yes" or (refit == "auto" and auto))
 
 

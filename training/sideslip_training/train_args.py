@@ -96,6 +96,15 @@ def train_parser() -> argparse.ArgumentParser:
         "split is in time (the validation part is then the stretch before the test)",
     )
     p.add_argument(
+        "--epochs",
+        type=int,
+        metavar="N",
+        help="train exactly N epochs, no early stopping and no choice (with --init, the "
+        "start is not kept): e.g. the count a --folds run chose, given again for another "
+        "start or seed; the validation split still scores the model, then it is refit on "
+        "all the bags for N epochs (unless --refit no). Not with --folds or --pso",
+    )
+    p.add_argument(
         "--folds",
         type=int,
         default=1,
