@@ -12,6 +12,8 @@ import json
 import statistics
 from pathlib import Path
 
+VARIANTS = ("ftcv", "lr1e-3", "e40", "ensemble", "ensemble_zero_shot")
+
 
 def pooled(score: Path) -> dict[str, float]:
     """Model file stem -> pooled MAE [deg] in one crossfall_training_check output."""
@@ -36,7 +38,7 @@ def car_row(variants: Path, folds: Path, car: int) -> dict[str, object] | None:
         for stem, mae in pooled(score).items():
             label = stem.removeprefix(f"car{car}-")
             row["ensemble_zero_shot" if stem == "fleet_ukf_ensemble_disturbance" else label] = mae
-    for name in ("lr1e-3", "ensemble"):
+    for name in ("lr1e-3", "e40", "ensemble"):
         metrics = variants / f"car{car}-{name}.run" / "metrics.json"
         if metrics.exists():
             row[f"{name}_epochs"] = json.loads(metrics.read_text())["best_epoch"]
@@ -51,7 +53,7 @@ def main() -> None:
     args = p.parse_args()
     rows = [r for c in range(25) if (r := car_row(args.variants, args.folds, c)) is not None]
     summary: dict[str, object] = {"cars": rows}
-    for name in ("ftcv", "lr1e-3", "ensemble", "ensemble_zero_shot"):
+    for name in VARIANTS:
         have = [r for r in rows if name in r]
         if not have:
             continue
@@ -62,7 +64,7 @@ def main() -> None:
             "mean_ftcv_deg": statistics.fmean(float(r["ftcv"]) for r in have),  # type: ignore[arg-type]
         }
     args.out.write_text(json.dumps(summary, indent=2) + "\n")
-    for name in ("ftcv", "lr1e-3", "ensemble", "ensemble_zero_shot"):
+    for name in VARIANTS:
         s = summary.get(name)
         if isinstance(s, dict):
             over = 1 - s["mean_mae_deg"] / s["mean_scratch_deg"]
