@@ -239,8 +239,7 @@ def _train_chosen(plan: TrainPlan, cv: CrossValidation, quiet: bool) -> TrainRes
             start_val_mae_deg=cv.start_mae_deg,
             stopped_early=True,
         )
-    chosen = replace(plan, base=replace(plan.base, max_epochs=cv.epochs))
-    result = _train_one(chosen, quiet, keep_last=True)
+    result = _train_fixed(plan, cv.epochs, quiet)
     # Still improving only when the chosen count is the longest fold's last epoch at
     # the profile's limit: then more epochs might have been better out of fold.
     result.stopped_early = not (
