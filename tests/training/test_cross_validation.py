@@ -116,6 +116,34 @@ def test_training_from_scratch_with_folds_trains_the_chosen_count(
     assert not (tmp_path / "m.run" / "refit_history.json").exists()
 
 
+def test_each_folds_network_is_written_to_the_run_folder_at_its_best_epoch(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    from sideslip_msgs_py.artifact import read_artifact
+
+    for i in range(4):
+        write_arrays(f"drive{i}", make_arrays(1000, seed=i), folder=tmp_path / "rec")
+    out = tmp_path / "m.safetensors"
+    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
+    args += ["--folds", "2", "--max-epochs", "3", "--refit", "no"]
+    assert train_main([*args, "--out", str(out), *TINY]) == 0
+    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+    final = read_artifact(out)[0]
+    for fold in cv["per_fold"]:
+        tensors, meta = read_artifact(
+            tmp_path / "m.run" / "folds" / f"fold-{fold['fold']}.safetensors"
+        )
+        best = min(fold["epoch_mae_deg"])
+        assert meta.metrics["fold"] == fold["fold"] and meta.metrics["folds"] == 2
+        assert meta.metrics["val_mae_deg"] == pytest.approx(best)
+        assert meta.metrics["best_epoch"] == 1 + fold["epoch_mae_deg"].index(best)
+        assert meta.uncertainty is None and set(tensors) == set(final)
+    assert sorted(p.name for p in (tmp_path / "m.run" / "folds").iterdir()) == [
+        "fold-1.safetensors",
+        "fold-2.safetensors",
+    ]
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

@@ -115,6 +115,8 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             metrics["fine_tuned_val_mae_deg"] = fine_tuned_val_mae
         meta = replace(metadata(result, metrics), uncertainty=uncertainty)
         _export(args.out, result, meta)
+        if cv is not None:
+            _export_folds(plan.run_dir, cv, metadata)
     except _Stop as stop:
         return _error(stop, stop.exit_code)
     _warn_if_still_improving(result, metrics)
@@ -373,6 +375,27 @@ def _export(out: Path, result: TrainResult, meta: ModelMetadata) -> None:
         export_model(out, result.model, meta, force=True)
     except ArtifactError as err:
         raise _Stop(str(err), 1) from err
+
+
+def _export_folds(
+    run_dir: Path,
+    cv: CrossValidation,
+    metadata: Callable[[TrainResult, dict[str, Any]], ModelMetadata],
+) -> None:
+    """--folds: each fold's network (its best epoch on its own fold) as
+    ``folds/fold-K.safetensors`` in the run folder, with no σ. They are K models trained
+    on other parts of the same bags, so ``sideslip-merge`` can average them
+    (docs/training.md, "Fine-tuning")."""
+    folder = run_dir / "folds"
+    folder.mkdir(exist_ok=True)
+    for record, result in zip(cv.folds, cv.results, strict=True):
+        metrics = {
+            "fold": record.fold,
+            "folds": len(cv.folds),
+            "val_mae_deg": result.best_val_mae_deg,
+            "best_epoch": result.best_epoch,
+        }
+        _export(folder / f"fold-{record.fold}.safetensors", result, metadata(result, metrics))
 
 
 def _warn_if_still_improving(result: TrainResult, metrics: dict[str, Any]) -> None:

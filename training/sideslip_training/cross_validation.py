@@ -67,6 +67,9 @@ class CrossValidation:
     curve: list[float] = field(default_factory=list)
     start_mae_deg: float | None = None
     epochs: int = 0
+    results: list[TrainResult] = field(default_factory=list, repr=False)
+    """Each fold's training, its best epoch on its own fold kept (the start's weights
+    when none beat them): written to the run folder, not into the summary."""
 
     @property
     def best_mae_deg(self) -> float:
@@ -222,6 +225,7 @@ def cross_validate(
             start_mae_forms=dict(result.start_val_mae_forms),
         )
         cv.folds.append(record)
+        cv.results.append(result)
         start = "" if record.start_mae_deg is None else f", start {record.start_mae_deg:.4f}"
         log(
             f"fold {k + 1}/{folds}: {len(held)} run(s), {len(val.ends)} windows{start}, "
