@@ -17,20 +17,11 @@ mkdir -p "$D"
     sweep_steer --out "data/mid/car$c/min5" > /dev/null
 [ -d "data/spec/car$c/test" ] || .venv/bin/python training/scripts/validation_benchmark.py \
     --cars "$c" --out "data/spec/car$c/test" > /dev/null
-O=(--profile quick --stride 5 --max-epochs 20 --device cpu --workers 1 --quiet)
-S=(--model lstm --hidden-units 64 --features measurable_observer_signals --prior ukf
-   --observer-value estimate_disturbance=true)
-run() {
-    local name=$1
-    shift
-    [ -f "$D/car$c-$name.safetensors" ] && return
-    /usr/bin/time -f "$name %e s" .venv/bin/sideslip-train --data "data/mid/car$c/min5" "$@" \
-        "${O[@]}" --out "$D/car$c-$name.safetensors" > "$D/car$c-$name.log" 2>&1
-}
-run ft --init "$START" --learning-rate 3e-4
-run ftcv --init "$START" --learning-rate 3e-4 --folds 5
-run scratch "${S[@]}"
-if [ "$c" -le 1 ]; then run scratchcv "${S[@]}" --folds 5; fi
+source training/scripts/fine_tune_recipe.sh
+train "$D/car$c" "data/mid/car$c/min5" ft --init "$START" --learning-rate 3e-4
+train "$D/car$c" "data/mid/car$c/min5" ftcv --init "$START" --learning-rate 3e-4 --folds 5
+train "$D/car$c" "data/mid/car$c/min5" scratch "${S[@]}"
+if [ "$c" -le 1 ]; then train "$D/car$c" "data/mid/car$c/min5" scratchcv "${S[@]}" --folds 5; fi
 models=("$START" "$D/car$c-ft.safetensors" "$D/car$c-ftcv.safetensors" "$D/car$c-scratch.safetensors")
 [ -f "$D/car$c-scratchcv.safetensors" ] && models+=("$D/car$c-scratchcv.safetensors")
 .venv/bin/python training/scripts/crossfall_training_check.py --model "${models[@]}" \

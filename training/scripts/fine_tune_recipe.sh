@@ -1,0 +1,14 @@
+# Sourced by the fine_tune_*.sh scripts: the recipe of docs/evaluation/fine-tune-folds
+# (quick profile at stride 5, 20 epochs at most, one core) and the network trained from
+# scratch beside it, and `train`, which runs one training unless its model is there:
+#     train PREFIX DRIVES NAME [sideslip-train options...]   # -> PREFIX-NAME.safetensors
+O=(--profile quick --stride 5 --max-epochs 20 --device cpu --workers 1 --quiet)
+S=(--model lstm --hidden-units 64 --features measurable_observer_signals --prior ukf
+   --observer-value estimate_disturbance=true)
+train() {
+    local prefix=$1 drives=$2 name=$3
+    shift 3
+    [ -f "$prefix-$name.safetensors" ] && return
+    /usr/bin/time -f "$name %e s" .venv/bin/sideslip-train --data "$drives" "$@" \
+        "${O[@]}" --out "$prefix-$name.safetensors" > "$prefix-$name.log" 2>&1
+}
