@@ -11,7 +11,8 @@ markdown table and writes ``--out`` (JSON).
         --out docs/evaluation/intervals/held-out-ukf-ensemble.json
 
 A report that scored several networks needs ``--model FILE``: the row of that model
-file (the report's ``model_estimators`` map).
+file (the report's ``model_estimators`` map); ``{car}`` in FILE stands for the report's
+car, for a model of each car's own (``--model 'data/cvheld/{car}-ftcv.safetensors'``).
 """
 
 from __future__ import annotations
@@ -45,7 +46,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reports", nargs="+", type=Path, required=True,
                    help="report folders, one per car, named CAR/REPORT")  # fmt: skip
     p.add_argument("--out", type=Path)
-    p.add_argument("--model", help="the model file whose row to read (as given to the report)")
+    p.add_argument(
+        "--model",
+        help="the model file whose row to read (as given to the report; {car}: the car's name)",
+    )
     args = p.parse_args(argv)
     table: dict[str, dict[str, dict[str, float]]] = {}
     for report in sorted(args.reports):
@@ -53,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         label = None
         if args.model is not None:
             label = json.loads((report / "metrics.json").read_text())["model_estimators"][
-                args.model
+                args.model.format(car=car)
             ]
         table[car] = {mu: network_row(by_est, label) for mu, by_est in cells(report).items()}
     mus = sorted({mu for row in table.values() for mu in row})

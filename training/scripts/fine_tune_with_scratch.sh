@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# The --folds 5 fine-tune at 1e-3 averaged (sideslip-merge) with the network trained from
+# scratch on the same five minutes: two models trained apart from one car's drives. On a
+# validation car (CAR = 0..7: fine_tune_variants.sh lr1e-3 and fine_tune_folds.sh's
+# scratch, scored on its 18 benchmark-style validation drives) or, once chosen there, a
+# held-out car (CAR = heldout_*: fine_tune_folds_held_out.sh's two models).
+# docs/evaluation/fine-tune-folds.
+#     bash training/scripts/fine_tune_with_scratch.sh CAR [OUT]
+set -euo pipefail
+c=$1
+D=${2:-data/ftscratch}
+export OMP_NUM_THREADS=1
+mkdir -p "$D"
+case $c in
+heldout_*)
+    models=("data/cvheld/$c-ftcv.safetensors" "data/cvheld/$c-scratch.safetensors")
+    drives=data/mid/ho/$c/min5
+    scored=data/ho-by-car/held-out/$c
+    ;;
+*)
+    models=("data/ftvar/car$c-lr1e-3.safetensors" "data/cvcurve/car$c-scratch.safetensors")
+    drives=data/mid/car$c/min5
+    scored=data/spec/car$c/test
+    ;;
+esac
+# σ is calibrated on four of the car's own drives (the merge needs some; the MAE here
+# does not depend on them).
+cal=$D/$c-cal
+if [ ! -d "$cal" ]; then
+    mkdir -p "$cal"
+    for b in $(ls -d "$drives"/*/ | head -4); do ln -s "$PWD/$b" "$cal/"; done
+fi
+[ -f "$D/$c-ftscratch.safetensors" ] || .venv/bin/sideslip-merge "${models[@]}" \
+    --data "$cal" --out "$D/$c-ftscratch.safetensors" > "$D/$c-merge.log" 2>&1
+.venv/bin/python training/scripts/crossfall_training_check.py --model "$D/$c-ftscratch.safetensors" \
+    --data "$scored" --out "$D/score-$c.json" > "$D/score-$c.log" 2>&1
