@@ -100,16 +100,22 @@ def test_fine_tuning_with_folds_chooses_out_of_fold_and_refits_on_all(
         assert metrics["kept_start_weights"] is True
 
 
-def test_training_from_scratch_with_folds_trains_the_chosen_count(
-    make_arrays, write_arrays, tmp_path: Path
-) -> None:
+def _scratch_with_two_folds(make_arrays, write_arrays, tmp_path: Path) -> dict:
+    """Train a tiny network from scratch with --folds 2 (no refit) on four drives; the
+    cross-validation record."""
     for i in range(4):
         write_arrays(f"drive{i}", make_arrays(1000, seed=i), folder=tmp_path / "rec")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
     args += ["--folds", "2", "--max-epochs", "3", "--refit", "no"]
     assert train_main([*args, "--out", str(out), *TINY]) == 0
-    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+    return json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
+
+
+def test_training_from_scratch_with_folds_trains_the_chosen_count(
+    make_arrays, write_arrays, tmp_path: Path
+) -> None:
+    cv = _scratch_with_two_folds(make_arrays, write_arrays, tmp_path)
     history = json.loads((tmp_path / "m.run" / "history.json").read_text())
     assert cv["start_pooled_mae_deg"] is None and cv["epochs"] >= 1
     assert history["epochs_run"] == cv["epochs"] == history["best_epoch"]
@@ -121,14 +127,8 @@ def test_each_folds_network_is_written_to_the_run_folder_at_its_best_epoch(
 ) -> None:
     from sideslip_msgs_py.artifact import read_artifact
 
-    for i in range(4):
-        write_arrays(f"drive{i}", make_arrays(1000, seed=i), folder=tmp_path / "rec")
-    out = tmp_path / "m.safetensors"
-    args = ["--data", str(tmp_path / "rec"), "--model", "lstm", "--hidden-units", "4"]
-    args += ["--folds", "2", "--max-epochs", "3", "--refit", "no"]
-    assert train_main([*args, "--out", str(out), *TINY]) == 0
-    cv = json.loads((tmp_path / "m.run" / "cross_validation.json").read_text())
-    final = read_artifact(out)[0]
+    cv = _scratch_with_two_folds(make_arrays, write_arrays, tmp_path)
+    final = read_artifact(tmp_path / "m.safetensors")[0]
     for fold in cv["per_fold"]:
         tensors, meta = read_artifact(
             tmp_path / "m.run" / "folds" / f"fold-{fold['fold']}.safetensors"
