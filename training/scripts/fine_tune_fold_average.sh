@@ -11,6 +11,7 @@ D=${2:-data/foldavg}
 START=${START:-data/runs/o5u-dist.safetensors}   # D1, a member of fleet_ukf_ensemble_disturbance
 export OMP_NUM_THREADS=1
 mkdir -p "$D"
+source training/scripts/fine_tune_recipe.sh
 case $c in
 heldout_*)
     run=data/cvheld/$c-ftcv.run
@@ -24,20 +25,8 @@ heldout_*)
     scored=data/spec/car$c/test
     # The same training as fine_tune_variants.sh lr1e-3 (same seed: the same folds), with
     # no refit, for its fold networks.
-    [ -d "$run/folds" ] || .venv/bin/sideslip-train --data "$drives" --init "$START" \
-        --learning-rate 1e-3 --folds 5 --refit no --profile quick --stride 5 --max-epochs 20 \
-        --device cpu --workers 1 --quiet --out "$D/car$c-lr1e-3-folds.safetensors" \
-        > "$D/car$c-folds.log" 2>&1
+    train "$D/car$c" "$drives" lr1e-3-folds --init "$START" --learning-rate 1e-3 --folds 5 \
+        --refit no
     ;;
 esac
-# σ is calibrated on four of the car's own drives (the merge needs some; the MAE here
-# does not depend on them).
-cal=$D/$c-cal
-if [ ! -d "$cal" ]; then
-    mkdir -p "$cal"
-    for b in $(ls -d "$drives"/*/ | head -4); do ln -s "$PWD/$b" "$cal/"; done
-fi
-[ -f "$D/$c-foldavg.safetensors" ] || .venv/bin/sideslip-merge "$run"/folds/fold-*.safetensors \
-    --data "$cal" --out "$D/$c-foldavg.safetensors" > "$D/$c-merge.log" 2>&1
-.venv/bin/python training/scripts/crossfall_training_check.py --model "$D/$c-foldavg.safetensors" \
-    --data "$scored" --out "$D/score-$c.json" > "$D/score-$c.log" 2>&1
+merge_and_score "$D/$c-foldavg" "$drives" "$scored" "$run"/folds/fold-*.safetensors

@@ -11,9 +11,13 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 from pathlib import Path
 
 from sideslip_sim.held_out import HELD_OUT_NAMES
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fine_tune_variants_summary import pooled
 
 
 def car_row(folder: Path, name: str) -> dict[str, object] | None:
@@ -22,9 +26,8 @@ def car_row(folder: Path, name: str) -> dict[str, object] | None:
     if not score.exists():
         return None
     row: dict[str, object] = {"car": name}
-    for model, by_data in json.loads(score.read_text()).items():
-        label = Path(model).stem.removeprefix(f"{name}-")
-        mae = next(iter(by_data.values()))["pooled_mae_deg"]
+    for stem, mae in pooled(score).items():
+        label = stem.removeprefix(f"{name}-")
         row[label if label in ("ftcv", "scratch") else "zero_shot"] = mae
     metrics = json.loads((folder / f"{name}-ftcv.run" / "metrics.json").read_text())
     row["ftcv_epochs"] = metrics["cross_validation"]["epochs"]

@@ -12,3 +12,20 @@ train() {
     /usr/bin/time -f "$name %e s" .venv/bin/sideslip-train --data "$drives" "$@" \
         "${O[@]}" --out "$prefix-$name.safetensors" > "$prefix-$name.log" 2>&1
 }
+# merge_and_score PREFIX DRIVES SCORED MODEL...: the models averaged (sideslip-merge, into
+# PREFIX.safetensors unless there) and scored on SCORED as the node runs them
+# (PREFIX-score.json). σ is calibrated on four of DRIVES, the car's own drives: the merge
+# needs some, and the MAE does not depend on them.
+merge_and_score() {
+    local prefix=$1 drives=$2 scored=$3
+    shift 3
+    local cal=$prefix-cal
+    if [ ! -d "$cal" ]; then
+        mkdir -p "$cal"
+        for b in $(ls -d "$drives"/*/ | head -4); do ln -s "$PWD/$b" "$cal/"; done
+    fi
+    [ -f "$prefix.safetensors" ] || .venv/bin/sideslip-merge "$@" --data "$cal" \
+        --out "$prefix.safetensors" > "$prefix-merge.log" 2>&1
+    .venv/bin/python training/scripts/crossfall_training_check.py --model "$prefix.safetensors" \
+        --data "$scored" --out "$prefix-score.json" > "$prefix-score.log" 2>&1
+}

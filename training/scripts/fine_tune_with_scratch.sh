@@ -23,14 +23,5 @@ heldout_*)
     scored=data/spec/car$c/test
     ;;
 esac
-# σ is calibrated on four of the car's own drives (the merge needs some; the MAE here
-# does not depend on them).
-cal=$D/$c-cal
-if [ ! -d "$cal" ]; then
-    mkdir -p "$cal"
-    for b in $(ls -d "$drives"/*/ | head -4); do ln -s "$PWD/$b" "$cal/"; done
-fi
-[ -f "$D/$c-ftscratch.safetensors" ] || .venv/bin/sideslip-merge "${models[@]}" \
-    --data "$cal" --out "$D/$c-ftscratch.safetensors" > "$D/$c-merge.log" 2>&1
-.venv/bin/python training/scripts/crossfall_training_check.py --model "$D/$c-ftscratch.safetensors" \
-    --data "$scored" --out "$D/score-$c.json" > "$D/score-$c.log" 2>&1
+source training/scripts/fine_tune_recipe.sh
+merge_and_score "$D/$c-ftscratch" "$drives" "$scored" "${models[@]}"
