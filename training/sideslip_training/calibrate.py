@@ -104,6 +104,24 @@ class Errors:
         runs = np.zeros(e.size, np.int64) if run is None else np.asarray(run, dtype=np.int64)
         return cls(e, v, ay, r, runs)
 
+    @classmethod
+    def concatenate(cls, parts: Sequence[tuple[Errors, int]]) -> Errors:
+        """Several sets of errors as one: each part with the number of runs it was made
+        from, its runs numbered on after the previous parts' (what :meth:`of_runs` gives
+        for all the runs in that order, each part scored by its own model)."""
+        if not parts:
+            raise ValueError("no errors to concatenate")
+        if len({p.beyond is not None for p, _ in parts}) > 1:
+            raise ValueError("errors with and without fit-range flags cannot be concatenated")
+        offsets = np.cumsum([0, *(n for _, n in parts[:-1])])
+
+        def cat(name: str) -> npt.NDArray[Any]:
+            return np.concatenate([getattr(p, name) for p, _ in parts])
+
+        run = np.concatenate([p.run + off for (p, _), off in zip(parts, offsets, strict=True)])
+        beyond = None if parts[0][0].beyond is None else cat("beyond")
+        return cls(cat("err"), cat("v"), cat("ay"), cat("r"), run, beyond)
+
     def select(self, indices: Sequence[int]) -> Errors:
         """The samples of the runs ``indices`` (indices into the runs these errors were
         made from), in the order given and renumbered 0..: what :meth:`of_runs` gives for

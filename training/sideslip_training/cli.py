@@ -61,7 +61,6 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     started = time.perf_counter()
     try:
         plan = plan_training(args, log)
-        intervals = interval_mode(args.intervals, plan)
         if args.folds != 1 and (args.pso or args.folds < 2):
             raise CliError(
                 f"--folds {args.folds}: cross-validation takes 2 or more folds, and not "
@@ -75,6 +74,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
         if args.folds > 1:  # dealt, and refused, before the run folder is made
             groups = fold_runs(_cv_runs(plan), args.folds, plan.data.split, args.seed)
             check_windows(groups, plan.window)
+        intervals = interval_mode(args.intervals, plan, groups)
     except (CliError, DatasetError, FeatureError, ImportError, ValueError, InitError) as err:
         return _error(err, EXIT_BAD_INPUT)
     command = " ".join(["sideslip-train", *(argv if argv is not None else sys.argv[1:])])
@@ -103,7 +103,14 @@ def train_main(argv: Sequence[str] | None = None) -> int:
 
         # Before the refit: the validation runs are still unseen by the selected model.
         uncertainty, calibration = calibrate_selection(
-            intervals, plan, result.model, metadata(result, {}), args.seed, log, args.intervals
+            intervals,
+            plan,
+            result.model,
+            metadata(result, {}),
+            args.seed,
+            log,
+            args.intervals,
+            folds=_calibration_folds(cv, groups, result),
         )
         result, metrics = _validate_and_refit(args, plan, config["split"], result, log, cv)
         if calibration is not None:
@@ -219,6 +226,20 @@ def _cross_validate(
         f"{cv.best_mae_deg:.4f} deg{start}"
     )
     return cv
+
+
+def _calibration_folds(
+    cv: CrossValidation | None, groups: list[list[Run]] | None, selected: TrainResult
+) -> list[tuple[list[Run], Any]] | None:
+    """--folds: what the intervals are calibrated on, each fold's runs with the network
+    that did not train on them (the fold's own, at its best epoch on it); every run with
+    the start when the start was kept (it trained on none of them). None without folds:
+    the validation split."""
+    if cv is None or groups is None:
+        return None
+    if cv.epochs == 0:
+        return [([r for g in groups for r in g], selected.model)]
+    return [(g, r.model) for g, r in zip(groups, cv.results, strict=True)]
 
 
 def _cv_runs(plan: TrainPlan) -> list[Run]:

@@ -114,15 +114,17 @@ def train_parser() -> argparse.ArgumentParser:
         "K blocks of each run; a held-out fold is scored on its runs' mirror images too "
         "when the training mirrors) instead of on the validation split alone, then train on "
         "the training part for that count and refit on all (unless --refit no): K + 2 "
-        "trainings, for a few minutes of data, where one validation split is a minute "
-        "(default 1: the validation split; not with --pso)",
+        "trainings, for a few minutes of data, where one validation split is a minute; "
+        "the intervals are then calibrated on every bag, each scored by the fold network "
+        "that did not train on it (default 1: the validation split; not with --pso)",
     )
     p.add_argument(
         "--intervals",
         choices=list(INTERVAL_POLICIES),
         default="auto",
         help="the per-sample σ the model publishes, calibrated on the validation runs "
-        "with the model early stopping chose (before any refit): scale keeps the --init "
+        "with the model early stopping chose (before any refit), or with --folds on every "
+        "bag out of fold: scale keeps the --init "
         "model's σ terms and fits their scale; fit fits terms and scale on halves of the "
         "validation bags; auto (default): scale when fine-tuning a model with σ terms, "
         "else fit with two or more validation bags, else none; no: none (the constant "

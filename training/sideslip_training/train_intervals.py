@@ -7,6 +7,8 @@ with the model that early stopping chose, **before** any refit: those runs are t
 data that model has not trained on. The refit model (trained again on training +
 validation) then carries that σ; it has seen more data, so its intervals lean wide
 rather than narrow (measured in docs/evaluation/intervals, "Fitted models").
+With ``--folds K`` the validation runs are every bag instead, each scored by the fold
+network that did not train on it (:mod:`.fold_calibration`): K times the data.
 
 Policies:
 
@@ -28,14 +30,14 @@ Policies:
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any, Final
 
 from sideslip_msgs_py.data_source import mirror_average_on
 
 from .cli_errors import CliError
-from .dataset import DatasetError
+from .dataset import DatasetError, Run
 from .train_plan import TrainPlan
 
 INTERVAL_POLICIES: Final = ("auto", "scale", "fit", "no")
@@ -46,15 +48,22 @@ wider than the car's own). Chosen on validation cars whose own recordings stayed
 recordings"): 1, 1.5, 2 and 3 were compared; the held-out cars were not used."""
 
 
-def interval_mode(policy: str, plan: TrainPlan) -> str | None:
-    """What ``policy`` does for this training: ``scale``, ``fit`` or None.
+def interval_mode(
+    policy: str, plan: TrainPlan, folds: Sequence[Sequence[Run]] | None = None
+) -> str | None:
+    """What ``policy`` does for this training: ``scale``, ``fit`` or None; ``folds``: the
+    runs dealt into folds (``--folds``), whose bags the intervals are calibrated on
+    instead of the validation bags.
 
     Raises CliError, before anything is trained, for an explicit policy the training
     cannot follow."""
+    from .fold_calibration import is_mirror_image
+
     if policy not in INTERVAL_POLICIES:
         raise CliError(f"--intervals must be one of {', '.join(INTERVAL_POLICIES)}, got {policy}")
     init_has_terms = plan.init is not None and plan.init.meta.uncertainty is not None
-    val_bags = len({r.bag for r in plan.data.val_runs})
+    runs = plan.data.val_runs if folds is None else [r for g in folds for r in g]
+    val_bags = len({r.bag for r in runs if not is_mirror_image(r)})
     if policy == "scale" and not init_has_terms:
         raise CliError(
             "--intervals scale keeps the σ terms of the --init model, but "
@@ -82,17 +91,21 @@ def calibrate_selection(
     seed: int,
     log: Callable[[str], None],
     policy: str = "auto",
+    folds: Sequence[tuple[Sequence[Run], Any]] | None = None,
 ) -> tuple[dict[str, Any] | None, dict[str, float] | None]:
     """The uncertainty model (:meth:`~sideslip_msgs_py.uncertainty.Uncertainty.to_dict`)
     and the calibration's figures for the selected ``model`` (metadata ``meta``), fitted
-    on the validation runs; (None, None) for ``mode`` None or when the calibration
-    cannot be made (too few scored samples, a filter or feature that fails on the
-    validation runs): the model is still exported, with its validation RMSE² as σ, and
-    an explicit ``policy`` (``scale``, ``fit``) says so on stderr even with --quiet."""
+    on the validation runs, or with ``folds`` (``--folds``: each fold's runs and the
+    network trained without them) on the out-of-fold errors of every fold's recorded
+    runs (:mod:`.fold_calibration`); (None, None) for ``mode`` None or when the
+    calibration cannot be made (too few scored samples, a filter or feature that fails
+    on the runs): the model is still exported, with its validation RMSE² as σ, and an
+    explicit ``policy`` (``scale``, ``fit``) says so on stderr even with --quiet."""
     from sideslip_msgs_py.features import FeatureError
 
     from .calibrate import calibrate
     from .filter_replay import FilterError
+    from .fold_calibration import out_of_fold_errors
 
     if mode is None:
         why = (
@@ -115,15 +128,22 @@ def calibrate_selection(
         # σ for what the node publishes by default: a model that learnt from simulated
         # runs alone averaged with its mirror image (pso_lstm.mirror_average auto).
         mirror = mirror_average_on("auto", meta.provenance)
+        scoring = {**car, "mirror_average": mirror}
+        runs, errors = plan.data.val_runs, None
+        if folds is not None:
+            runs, errors = out_of_fold_errors(folds, meta, scoring)
         unc, figures = calibrate(
-            plan.data.val_runs,
+            runs,
             model,
             meta,
             seed=seed,
             scale_only=mode == "scale",
-            car={**car, "mirror_average": mirror},
+            car=scoring,
+            errors=errors,
         )
         figures = {**figures, "mirror_averaged": float(mirror)}
+        if errors is not None:
+            figures = {**figures, "out_of_fold_folds": float(len(folds or ()))}
         if mode == "scale":
             unc = replace(unc, fit_range=_fit_range(plan, start.scale))
     except (DatasetError, FilterError, FeatureError, ValueError) as err:
@@ -142,8 +162,13 @@ def calibrate_selection(
             f"|β̇| ≤ {fit.beta_rate_radps:.3f} rad/s; while the window reaches beyond, "
             f"scale {fit.outside_scale:.3f} ({OUTSIDE_FACTOR:g} × the start's) when wider"
         )
+    where = (
+        "on the validation runs with the selected model"
+        if folds is None
+        else f"out of fold: {len(folds)} fold(s), each scored by the network that missed it"
+    )
     log(
-        f"intervals ({mode}, on the validation runs with the selected model): scale "
+        f"intervals ({mode}, {where}): scale "
         f"{unc.scale:.3f}, {figures['coverage_scale_half']:.3f} of the samples inside "
         f"±1.96 σ; per run {figures['coverage_per_run_min']:.3f} (min) to "
         f"{figures['coverage_per_run_median']:.3f} (median)"
