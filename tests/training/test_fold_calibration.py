@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -55,11 +56,13 @@ def test_mirror_images_are_told_from_recorded_runs_also_as_blocks_in_time(make_a
     assert is_mirror_image(mirror) and is_mirror_image(block)
 
 
+@pytest.mark.parametrize("alpha", [1.0, 0.5])
 def test_fine_tuning_with_folds_calibrates_on_every_bag_with_the_net_that_missed_it(
-    make_arrays, write_arrays, tmp_path: Path
+    make_arrays, write_arrays, tmp_path: Path, alpha: float
 ) -> None:
     """The exported σ's scale is the conformal scale of each fold's errors under the
-    fold network written to the run folder: recomputed here from those files."""
+    fold network written to the run folder (recomputed here from those files), moved
+    toward the start as the exported model is with --interpolate."""
     from sideslip_msgs_py.data_source import mirror_average_on
     from sideslip_msgs_py.uncertainty import Uncertainty
     from sideslip_training.calibrate import conformal_scale
@@ -68,11 +71,13 @@ def test_fine_tuning_with_folds_calibrates_on_every_bag_with_the_net_that_missed
     from sideslip_training.dataset import load_runs
     from sideslip_training.export import load_model
     from sideslip_training.init_model import resolve
+    from sideslip_training.weight_interpolation import interpolate_toward
 
     for i in range(5):
         write_arrays(f"drive{i}", make_arrays(1200, seed=i), folder=tmp_path / "rec")
     out = tmp_path / "m.safetensors"
     args = ["--data", str(tmp_path / "rec"), "--init", "fleet_lstm_paper", "--folds", "3"]
+    args += ["--interpolate", str(alpha), "--learning-rate", "1e-2"]
     assert train_main([*args, "--max-epochs", "2", "--out", str(out), *TINY]) == 0
     _, meta = load_model(out)
     figures = meta.metrics["interval_calibration"]
@@ -85,12 +90,18 @@ def test_fine_tuning_with_folds_calibrates_on_every_bag_with_the_net_that_missed
     mirror = mirror_average_on("auto", meta.provenance)
     scoring = dataclasses.replace(meta, uncertainty=start.to_dict())
     parts = []
+    start_net, _ = load_model(resolve("fleet_lstm_paper"))
+    moved = 0
     for k, held in enumerate(fold_runs(runs, 3, "bag", 0)):
-        net, _ = load_model(tmp_path / "m.run" / "folds" / f"fold-{k + 1}.safetensors")
+        net, fold = load_model(tmp_path / "m.run" / "folds" / f"fold-{k + 1}.safetensors")
+        if fold.metrics["best_epoch"] > 0:
+            interpolate_toward(net, start_net.state_dict(), alpha)
+            moved += 1
         parts.append(Errors.of_runs(held, net, scoring, mirror_average=mirror))
     err = np.concatenate([p.err for p in parts])
     pooled = Errors.from_arrays(err, *(np.concatenate([getattr(p, a) for p in parts])
                                        for a in ("v", "ay", "r")))  # fmt: skip
-    assert unc.scale == conformal_scale(pooled, start.coefficients, 0.95)
+    assert unc.scale == pytest.approx(conformal_scale(pooled, start.coefficients, 0.95), rel=1e-6)
+    assert moved > 0  # a fold that trained, so that the interpolation is tested
     metrics = json.loads((tmp_path / "m.run" / "metrics.json").read_text())
     assert metrics["interval_calibration"]["out_of_fold_folds"] == 3

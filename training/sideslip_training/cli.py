@@ -110,7 +110,7 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             args.seed,
             log,
             args.intervals,
-            folds=_calibration_folds(cv, groups, result),
+            folds=_calibration_folds(cv, groups, result, plan, args.interpolate),
         )
         result, metrics = _validate_and_refit(args, plan, config["split"], result, log, cv)
         if calibration is not None:
@@ -229,17 +229,29 @@ def _cross_validate(
 
 
 def _calibration_folds(
-    cv: CrossValidation | None, groups: list[list[Run]] | None, selected: TrainResult
+    cv: CrossValidation | None,
+    groups: list[list[Run]] | None,
+    selected: TrainResult,
+    plan: TrainPlan,
+    alpha: float,
 ) -> list[tuple[list[Run], Any]] | None:
     """--folds: what the intervals are calibrated on, each fold's runs with the network
-    that did not train on them (the fold's own, at its best epoch on it); every run with
-    the start when the start was kept (it trained on none of them). None without folds:
-    the validation split."""
+    that did not train on it (the fold's own, at its best epoch on it, moved toward the
+    start as the exported model is with --interpolate ``alpha``); every run with the
+    start when the start was kept (it trained on none of them). None without folds: the
+    validation split."""
     if cv is None or groups is None:
         return None
     if cv.epochs == 0:
         return [([r for g in groups for r in g], selected.model)]
-    return [(g, r.model) for g, r in zip(groups, cv.results, strict=True)]
+    start = plan.init_state()
+    nets = []
+    for result in cv.results:
+        net = result.model
+        if start is not None and alpha < 1.0 and result.best_epoch > 0:
+            net = interpolate_toward(copy.deepcopy(net), start, alpha)
+        nets.append(net)
+    return list(zip(groups, nets, strict=True))
 
 
 def _cv_runs(plan: TrainPlan) -> list[Run]:

@@ -8,7 +8,8 @@ fine-tune-folds): the scale of one minute's errors is not the scale of the car's
 other driving. The folds score every bag once, with a network that has not seen it, so
 the calibration gets K times the data at no further training.
 
-Only each fold's recorded runs count, not their mirror images: the node averages a
+Each fold's network is scored as the exported model will run: moved toward the start
+with ``--interpolate`` as it is (the caller does that). Only each fold's recorded runs count, not their mirror images: the node averages a
 simulated-trained network with its mirror image, and on a mirror image that average's
 errors are the recorded run's, mirrored — the same samples twice.
 """
