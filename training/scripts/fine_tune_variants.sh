@@ -3,10 +3,11 @@
 # scoring (docs/evaluation/fine-tune-folds, "Two variants"):
 #   lr1e-3    D1 with --folds 5 at learning rate 1e-3 instead of 3e-4
 #   e40       D1 with --folds 5 at 3e-4, up to 40 epochs instead of 20
+#   lr1e-3-e40  D1 with --folds 5 at 1e-3, up to 40 epochs instead of 20
 #   ensemble  all five members of fleet_ukf_ensemble_disturbance, member by member, for
 #             the epoch count D1's --folds 5 chose on the car (--epochs N, read from
 #             fine_tune_folds.sh's run folder)
-# One car and variant per call, one core; lr1e-3 16-20 minutes, e40 35, ensemble 32:
+# One car and variant per call, one core; lr1e-3 16-20 minutes, e40 35, lr1e-3-e40 about 35, ensemble 32:
 #     bash training/scripts/fine_tune_variants.sh CAR VARIANT [OUT] [FOLDS_OUT]
 set -euo pipefail
 c=$1
@@ -24,12 +25,15 @@ case $variant in
     e40)
         args=(--init data/runs/o5u-dist.safetensors --learning-rate 3e-4 --folds 5
               --max-epochs 40) ;;
+    lr1e-3-e40)
+        args=(--init data/runs/o5u-dist.safetensors --learning-rate 1e-3 --folds 5
+              --max-epochs 40) ;;
     ensemble)
         n=$(.venv/bin/python -c "import json,sys; print(json.load(open(sys.argv[1]))['epochs'])" \
             "$CV/car$c-ftcv.run/cross_validation.json")
         [ "$n" -ge 1 ] || { echo "D1 kept its start on car $c: nothing to train" >&2; exit 1; }
         args=(--init fleet_ukf_ensemble_disturbance --learning-rate 3e-4 --epochs "$n") ;;
-    *) echo "unknown variant $variant (lr1e-3, e40, ensemble)" >&2; exit 2 ;;
+    *) echo "unknown variant $variant (lr1e-3, e40, lr1e-3-e40, ensemble)" >&2; exit 2 ;;
 esac
 [ -f "$out" ] || /usr/bin/time -f "$variant %e s" .venv/bin/sideslip-train \
     --data "data/mid/car$c/min5" "${args[@]}" "${O[@]}" --out "$out" > "$D/car$c-$variant.log" 2>&1
