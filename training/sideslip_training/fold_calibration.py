@@ -9,7 +9,9 @@ other driving. The folds score every bag once, with a network that has not seen 
 the calibration gets K times the data at no further training.
 
 Each fold's network is scored as the exported model will run: moved toward the start
-with ``--interpolate`` as it is (the caller does that). Only each fold's recorded runs count, not their mirror images: the node averages a
+with ``--interpolate`` as it is (the caller does that).
+
+Only each fold's recorded runs count, not their mirror images: the node averages a
 simulated-trained network with its mirror image, and on a mirror image that average's
 errors are the recorded run's, mirrored — the same samples twice.
 """
