@@ -57,13 +57,12 @@ def interval_mode(
 
     Raises CliError, before anything is trained, for an explicit policy the training
     cannot follow."""
-    from .fold_calibration import is_mirror_image
-
     if policy not in INTERVAL_POLICIES:
         raise CliError(f"--intervals must be one of {', '.join(INTERVAL_POLICIES)}, got {policy}")
     init_has_terms = plan.init is not None and plan.init.meta.uncertainty is not None
+    # A mirror image stays in its run's bag: it adds no bag.
     runs = plan.data.val_runs if folds is None else [r for g in folds for r in g]
-    val_bags = len({r.bag for r in runs if not is_mirror_image(r)})
+    val_bags = len({r.bag for r in runs})
     if policy == "scale" and not init_has_terms:
         raise CliError(
             "--intervals scale keeps the σ terms of the --init model, but "
