@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from .cli_errors import CliError
-from .fit_bags_args import BAG_RECIPES, interpolation, learning_rate, rehearsal_runs
+from .fit_bags_args import BAG_RECIPES, folds, interpolation, learning_rate, rehearsal_runs
 from .fit_bags_card import (
     gentle_recordings,
     model_card,
@@ -232,12 +232,14 @@ def run(
         rate = learning_rate(args, shipped)
         train += ["--learning-rate", repr(rate)] if rate is not None else []
         train += ["--interpolate", repr(interpolation(args, shipped))]
+        train += ["--folds", str(folds(args))] if folds(args) > 1 else []
         train += ["--quiet"] if args.quiet else []
         if measurable:
             train += ["--vehicle", str(args.vehicle), "--observer-params", str(ukf_file)]
             train += ["--car", "given"]
         with_rehearsal = f" + {rehearsal_runs(args)} rehearsal runs" if rehearsal else ""
-        stage(log, started, f"fine-tuning {shipped}: {recipe.summary}{with_rehearsal}")
+        chosen = f", epochs chosen over {folds(args)} folds" if folds(args) > 1 else ""
+        stage(log, started, f"fine-tuning {shipped}: {recipe.summary}{with_rehearsal}{chosen}")
         code = train_main(train)
         if code != 0:
             return code

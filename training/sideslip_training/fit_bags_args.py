@@ -117,6 +117,17 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
         "docs/evaluation/fit-bags)",
     )
     p.add_argument(
+        "--folds",
+        type=int,
+        metavar="K",
+        default=None,
+        help="with --bags: choose the fine-tune's epoch count, or keeping the start, by "
+        "K-fold cross-validation over the part before the test (each recording cut into K "
+        "blocks in time; sideslip-train --folds) instead of on the stretch just before the "
+        "test, and calibrate σ on all of that part out of fold: K + 2 trainings instead "
+        "of 1-2 (default 1: that stretch)",
+    )
+    p.add_argument(
         "--test-bags",
         nargs="+",
         metavar="BAG",
@@ -129,7 +140,8 @@ def add_bag_arguments(p: argparse.ArgumentParser) -> None:
 def check_bag_arguments(args: argparse.Namespace) -> float:
     """Refuse options that do not go together; the test fraction to use."""
     if args.bags is None:
-        for name in ("topic_map", "test_fraction", "test_bags", "rehearse", "interpolate"):
+        names = ("topic_map", "test_fraction", "test_bags", "rehearse", "interpolate", "folds")
+        for name in names:
             if getattr(args, name) is not None:
                 raise CliError(f"--{name.replace('_', '-')} needs --bags")
         return 0.0
@@ -143,6 +155,8 @@ def check_bag_arguments(args: argparse.Namespace) -> float:
             check_alpha(args.interpolate)
         except ValueError as err:
             raise CliError(str(err)) from None
+    if args.folds is not None and args.folds < 1:
+        raise CliError(f"--folds must be 1 (no cross-validation) or >= 2, got {args.folds}")
     fraction = DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction
     if not (0.0 < fraction < 1.0 and math.isfinite(fraction)):
         raise CliError(f"--test-fraction must be in (0, 1), got {args.test_fraction}")
@@ -172,3 +186,8 @@ def _start_name(start: str) -> str:
 def rehearsal_runs(args: argparse.Namespace) -> int:
     """How many rehearsal runs the fit trains beside the recordings."""
     return DEFAULT_REHEARSAL_RUNS if args.rehearse is None else int(args.rehearse)
+
+
+def folds(args: argparse.Namespace) -> int:
+    """How many folds choose the fine-tune (1: the stretch before the test part)."""
+    return 1 if args.folds is None else int(args.folds)

@@ -73,8 +73,8 @@ Fitted by `sideslip-fit --vehicle {args.vehicle} --bags {" ".join(args.bags)}{to
 ## Data
 
 The car's own recordings, each split in time: the first {1 - fraction:.0%} for
-identification and fine-tuning ({recipe_summary}, `--split time`: the validation part
-is the stretch before the test), the last {fraction:.0%} for the test below and nothing
+identification and fine-tuning ({recipe_summary}, `--split time`: {_choice(train_metrics)}),
+the last {fraction:.0%} for the test below and nothing
 else.{axles}{kept}{_sigma(train_metrics, uncertainty)}
 
 ## Deploy
@@ -92,6 +92,23 @@ without this fit{_shipped_note(found)}.
 
 {_limits(args, found, topic_map, new_drives is not None)}
 """
+
+
+def _choice(train_metrics: dict[str, Any]) -> str:
+    """How the fine-tune's epoch count was chosen: on the stretch before the test part,
+    or out of fold over the whole part before it (``--folds``)."""
+    cv = train_metrics.get("cross_validation")
+    if not cv:
+        return "the validation part is the stretch before the test"
+    chosen = (
+        "keeping the start" if cv["kept_start"] else f"{cv['epochs']} epochs, refit on all of it"
+    )
+    return (
+        f"the epoch count chosen by {cv['folds']}-fold cross-validation over the whole "
+        f"part, each recording cut into {cv['folds']} blocks in time: {chosen} (pooled "
+        f"out-of-fold MAE {cv['pooled_mae_deg']:.4f}° against the start's "
+        f"{cv['start_pooled_mae_deg']:.4f}°)"
+    )
 
 
 def _table(scored: Scored) -> str:
