@@ -197,6 +197,34 @@ def test_paper_features_fine_tune_the_kinematic_residual_without_a_ukf_file(
     assert "rehearsal: 2 runs already simulated (reused)" in capsys.readouterr().err
 
 
+def test_folds_choose_the_fine_tune_over_the_whole_part_before_the_test(
+    foreign_bags, compact_rwd_description, tmp_path, capsys
+):
+    """--folds 2: each recording's part before its test cut into two blocks in time, the
+    choice and σ made out of fold over both, recorded in the run folder and on the card."""
+    folder, topic_map = foreign_bags
+    out = tmp_path / "folds.safetensors"
+    code = main(["--vehicle", str(compact_rwd_description), "--bags", str(folder),
+                 "--topic-map", str(topic_map), "--out", str(out), "--max-epochs", "1",
+                 "--folds", "2", "--quiet"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    run = tmp_path / "folds.fit" / "train-run"
+    assert json.loads((run / "config.json").read_text())["args"]["folds"] == 2
+    cv = json.loads((run / "cross_validation.json").read_text())
+    recordings = sum(1 for p in folder.iterdir() if p.is_dir())
+    # Every recording gives each fold a block of its own (in time, not by bag).
+    assert [f["fold"] for f in cv["per_fold"]] == [1, 2]
+    assert all(f["val_runs"] >= recordings for f in cv["per_fold"]), cv["per_fold"]
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["cross_validation"]["folds"] == 2
+    assert metrics["interval_calibration"]["out_of_fold_folds"] == 2
+    card = out.with_suffix(".md").read_text()
+    assert "2-fold cross-validation over the whole part" in card
+    chosen = metrics["cross_validation"]["epochs"]
+    said = f"{chosen} epoch{'s' * (chosen != 1)}, refit on all" if chosen else "keeping the start"
+    assert said in card
+
+
 def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tmp_path):
     import argparse
 
@@ -231,6 +259,7 @@ def test_the_ensemble_start_is_fine_tuned_at_its_own_learning_rate_unless_one_is
         (["--test-fraction", "1.5"], "--test-fraction must be in (0, 1)"),
         (["--cars", "4"], "--cars is for simulated fits"),
         (["--rehearse", "-1"], "--rehearse must be >= 0 runs"),
+        (["--folds", "0"], "--folds must be 1 (no cross-validation) or >= 2, got 0"),
         (["--interpolate", "1.5"], "--interpolate must be within (0, 1], got 1.5"),
         (["--test-bags", "{folder}"], "must be other drives than the fit's"),
         (["--test-bags", "{folder}/drive03"], "must be other drives than the fit's"),
@@ -276,6 +305,7 @@ def _short_recording(dest):
         ("--test-bags", "map.yaml"),
         ("--rehearse", "8"),
         ("--interpolate", "0.5"),
+        ("--folds", "3"),
     ],
 )
 def test_recording_options_without_bags_are_refused(

@@ -71,6 +71,40 @@ def test_a_mirror_image_is_filtered_once_its_odd_columns_negated(
     assert len(list(observer.cache_dir().glob("*.npz"))) == 1
 
 
+def test_a_run_cut_in_time_reads_the_filter_that_ran_through_the_cut(
+    sim_bag_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """A split in time and a fold's blocks: the pieces' columns are the whole run's at
+    their samples (the node ran through the cut), not a filter started again at it;
+    their mirror images too, and the recording is filtered once for all its pieces."""
+    from sideslip_training.cross_validation import fold_runs
+    from sideslip_training.splits import split_in_time
+    from sideslip_training.training_data import with_mirrored
+
+    monkeypatch.setenv("SIDESLIP_CACHE", str(tmp_path / "cache"))
+    run = load_runs([sim_bag_dir])[0][0]
+    values = observer.default_values()
+    whole = observer.columns(run, values)
+    head, tail = split_in_time([run], 0.4, "val")
+    blocks = [r for g in fold_runs([*head, *tail], 3, "time", 0) for r in g]
+    pieces = with_mirrored([*head, *tail, *blocks])
+    observer.precompute(pieces, values, progress=False)
+    assert len(list(observer.cache_dir().glob("*.npz"))) == 1  # the whole run's
+    for piece in pieces:
+        got = observer.columns(piece, values)
+        n, k = len(piece.samples), piece.offset
+        sign = -1.0 if piece.name.endswith("~mirror") else 1.0
+        np.testing.assert_array_equal(got["ukf.beta_rad"], sign * whole["ukf.beta_rad"][k : k + n])
+        np.testing.assert_array_equal(
+            got["ukf.road_friction"], whole["ukf.road_friction"][k : k + n]
+        )
+    # What a filter started again at the cut would have given: not the same.
+    params, stl = observer.run_params(tail[0], None)
+    fresh = observer.compute(tail[0], params, values, stl)["ukf.beta_rad"]
+    assert tail[0].offset > 0
+    assert not np.allclose(fresh[:50], whole["ukf.beta_rad"][tail[0].offset :][:50])
+
+
 def test_a_recording_without_a_car_needs_the_ukf_params_file(make_arrays, write_arrays):
     bag = write_arrays("real_car", make_arrays(300))
     runs, _ = load_runs([bag])

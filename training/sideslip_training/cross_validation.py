@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .cli_errors import CliError
-from .dataset import Run, slice_samples
+from .dataset import Run, cut
 from .inputs import InputSpec
 from .normalize import Normalizer
 from .splits import bag_rank
@@ -117,8 +117,7 @@ def fold_runs(runs: Sequence[Run], folds: int, mode: str, seed: int) -> list[lis
         cuts = [round(k * n / folds) for k in range(folds + 1)]
         for k in range(folds):
             if cuts[k + 1] > cuts[k]:
-                part = slice_samples(run.samples, cuts[k], cuts[k + 1])
-                groups[k].append(dataclasses.replace(run, name=f"{run.name}#{k}", samples=part))
+                groups[k].append(cut(run, cuts[k], cuts[k + 1], f"{run.name}#{k}"))
     return groups
 
 

@@ -82,6 +82,13 @@ class Run:
         car_source: where this run's car parameters come from
             (:data:`~.inputs.CAR_SOURCES`), over the model's ``--car``; None: the
             model's. ``sideslip-train --rehearse`` runs take their own records.
+        recording: for a run cut in time out of a longer one (:func:`cut`: a split in
+            time, a fold's block), the whole stretch it was cut from; ``offset`` is where
+            this run starts in it. Filters that carry a state from sample to sample (the
+            UKF observer, the physics baselines) run over the recording from its start and
+            are read at this run's samples, as the node, which ran through the earlier
+            samples, would have them; no window reaches before the cut. None: the run is
+            the whole stretch.
     """
 
     name: str
@@ -92,6 +99,8 @@ class Run:
     run_metadata: dict[str, Any] = field(default_factory=dict)
     bag: str = ""
     car_source: str | None = None
+    recording: SampleArrays | None = None
+    offset: int = 0
 
     def __post_init__(self) -> None:
         if not self.bag:
@@ -115,6 +124,29 @@ def slice_samples(samples: SampleArrays, start: int, stop: int) -> SampleArrays:
     """Rows start:stop of every column."""
     cols = {f.name: getattr(samples, f.name) for f in dataclasses.fields(samples)}
     return SampleArrays(**{k: (None if v is None else v[start:stop]) for k, v in cols.items()})
+
+
+def cut(run: Run, start: int, stop: int, name: str | None = None) -> Run:
+    """Samples ``start:stop`` of ``run`` as a run of its own (named ``name``, default
+    the run's), which remembers the recording it was cut from (:attr:`Run.recording`)."""
+    return dataclasses.replace(
+        run,
+        name=run.name if name is None else name,
+        samples=slice_samples(run.samples, start, stop),
+        recording=run.samples if run.recording is None else run.recording,
+        offset=run.offset + start,
+    )
+
+
+def filtered_span(run: Run) -> tuple[SampleArrays, int]:
+    """The samples a stateful filter runs over to be read at ``run``'s samples: the
+    recording up to the run's end, and where the run's samples start in it."""
+    if run.recording is None:
+        return run.samples, 0
+    stop = run.offset + len(run.samples)
+    if not np.array_equal(run.recording.stamp_ns[run.offset : stop], run.samples.stamp_ns):
+        raise ValueError(f"{run.name}: its samples are not those of its recording at {run.offset}")
+    return slice_samples(run.recording, 0, stop), run.offset
 
 
 def without_slow_targets(samples: SampleArrays) -> tuple[SampleArrays, int]:

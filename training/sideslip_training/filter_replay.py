@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .dataset import Run
+from .dataset import Run, filtered_span
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -22,7 +22,8 @@ FILTER_LABELS = {"single_track": "Single-track KF", "ukf": "UKF"}
 def physics_filter(run: Run, backend: str, params_file: str, window_steps: int) -> FloatArray:
     """β̂ [rad] of the estimator's ``backend`` (``single_track`` or ``ukf``, with
     ``params_file``) fed the run through the estimator core as the node would, for
-    samples[window_steps-1:] (NaN where it gives none)."""
+    samples[window_steps-1:] (NaN where it gives none). A run cut out of a recording is
+    filtered from the recording's start, as the node ran through it."""
     from sideslip_estimator.backends import BackendError, create_backend
     from sideslip_estimator.estimator import Estimator, EstimatorParams
     from sideslip_estimator.replay import replay, replay_columns
@@ -32,4 +33,5 @@ def physics_filter(run: Run, backend: str, params_file: str, window_steps: int) 
     except (BackendError, ImportError) as err:
         raise FilterError(f"{FILTER_LABELS[backend]}: {err}") from None
     est = Estimator(backend_, EstimatorParams(window_steps=window_steps))
-    return replay(est, replay_columns(run.samples)).beta_rad[window_steps - 1 :]
+    span, offset = filtered_span(run)
+    return replay(est, replay_columns(span)).beta_rad[offset + window_steps - 1 :]

@@ -100,8 +100,10 @@ def _choice(train_metrics: dict[str, Any]) -> str:
     cv = train_metrics.get("cross_validation")
     if not cv:
         return "the validation part is the stretch before the test"
+    epochs = cv["epochs"]
+    plural = "s" * (epochs != 1)
     chosen = (
-        "keeping the start" if cv["kept_start"] else f"{cv['epochs']} epochs, refit on all of it"
+        "keeping the start" if cv["kept_start"] else f"{epochs} epoch{plural}, refit on all of it"
     )
     return (
         f"the epoch count chosen by {cv['folds']}-fold cross-validation over the whole "

@@ -42,7 +42,7 @@ from sideslip_msgs_py.mirror import ODD_INPUTS, mirrored
 from sideslip_msgs_py.model_inputs import OBSERVER_COLUMNS
 
 from .config import WINDOW_STEPS
-from .dataset import DatasetError
+from .dataset import DatasetError, filtered_span
 
 if TYPE_CHECKING:
     from .dataset import Run
@@ -259,7 +259,16 @@ class Recorder:
 def columns(
     run: Run, values: Mapping[str, Any], params_file: str | None = None, car: str = "recorded"
 ) -> dict[str, FloatArray]:
-    """The observer columns of ``run``, from the disk cache when there."""
+    """The observer columns of ``run``, from the disk cache when there. A run cut out of
+    a recording (:attr:`Run.recording`) reads them off the whole recording's filter, which
+    ran through the samples before the cut as the node did."""
+    if run.recording is not None:
+        whole = recording_of(run)
+        span, offset = filtered_span(run)
+        n = len(run.samples.stamp_ns)
+        got = columns(whole, values, params_file, car)
+        assert len(span.stamp_ns) == offset + n  # filtered_span checked the stamps
+        return {c: v[offset : offset + n] for c, v in got.items()}
     params, stl = run_params(run, params_file, car=car)
     path = cache_dir() / f"{_digest(run, params, values, stl)}.npz"
     recent = _RECENT.get(path)
@@ -280,6 +289,14 @@ def columns(
     while len(_RECENT) > _RECENT_RUNS:
         _RECENT.pop(next(iter(_RECENT)))
     return out
+
+
+def recording_of(run: Run) -> Run:
+    """The whole recording ``run`` was cut from, as a run of its own (``run`` itself when
+    it was not cut). The filter runs over it once for all its pieces."""
+    if run.recording is None:
+        return run
+    return dataclasses.replace(run, samples=run.recording, recording=None, offset=0)
 
 
 def _mirror_digest(
@@ -303,9 +320,10 @@ def without_mirror_images(
     kept = []
     for run in runs:
         params, stl = run_params(run, params_file, car=car)
-        if _mirror_digest(run, params, values, stl) in seen:
-            continue
-        seen.add(_digest(run, params, values, stl))
+        digest = _digest(run, params, values, stl)
+        if digest in seen or _mirror_digest(run, params, values, stl) in seen:
+            continue  # the same samples (pieces' recordings), or their mirror image
+        seen.add(digest)
         kept.append(run)
     return kept
 
@@ -340,10 +358,13 @@ def precompute(
     jobs: int = 1,
     progress: bool = True,
 ) -> None:
-    """Fill the cache for ``runs`` with ``jobs`` worker processes (fork); a mirror image
-    of an earlier run is not filtered (:func:`without_mirror_images`)."""
+    """Fill the cache for ``runs`` with ``jobs`` worker processes (fork); runs cut out of
+    one recording are filtered once, over the recording; a mirror image of an earlier
+    run is not filtered (:func:`without_mirror_images`)."""
     from tqdm import tqdm
 
+    wholes = {id(r.recording): recording_of(r) for r in runs if r.recording is not None}
+    runs = [*(r for r in runs if r.recording is None), *wholes.values()]
     runs = without_mirror_images(runs, values, params_file, car)
 
     bar = tqdm(

@@ -10,7 +10,8 @@ import dataclasses
 import hashlib
 from collections.abc import Sequence
 
-from .dataset import DatasetError, Run, slice_samples
+from .dataset import DatasetError, Run
+from .dataset import cut as cut_run
 
 
 def bag_rank(seed: int, bag: str) -> str:
@@ -54,7 +55,9 @@ def split_in_time(runs: Sequence[Run], fraction: float, suffix: str) -> tuple[li
     segments) go to the second list, named ``<name>@<suffix>``, the rest to the first.
 
     For one long recording, where a split by bag is impossible: no window spans the cut
-    (the two sides are separate runs), and nothing depends on bag names.
+    (the two sides are separate runs), and nothing depends on bag names. The second side
+    remembers its recording (:attr:`~.dataset.Run.recording`): the UKF observer runs
+    through the cut, as the node does, rather than starting again there.
 
     Raises:
         DatasetError: ``fraction`` outside (0, 1), no runs, or a bag so short that a side
@@ -82,11 +85,7 @@ def split_in_time(runs: Sequence[Run], fraction: float, suffix: str) -> tuple[li
                 tail.append(dataclasses.replace(r, name=f"{r.name}@{suffix}"))
             else:
                 k = cut - seen
-                head.append(dataclasses.replace(r, samples=slice_samples(r.samples, 0, k)))
-                tail.append(
-                    dataclasses.replace(
-                        r, name=f"{r.name}@{suffix}", samples=slice_samples(r.samples, k, n)
-                    )
-                )
+                head.append(cut_run(r, 0, k))
+                tail.append(cut_run(r, k, n, f"{r.name}@{suffix}"))
             seen += n
     return head, tail

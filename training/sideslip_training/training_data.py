@@ -133,7 +133,12 @@ def with_mirrored(runs: Sequence[Run]) -> list[Run]:
     return [
         *runs,
         *(
-            dataclasses.replace(r, name=r.name + MIRROR_SUFFIX, samples=mirrored(r.samples))
+            dataclasses.replace(
+                r,
+                name=r.name + MIRROR_SUFFIX,
+                samples=mirrored(r.samples),
+                recording=None if r.recording is None else mirrored(r.recording),
+            )
             for r in runs
         ),
     ]
