@@ -190,19 +190,8 @@ def _cross_validate(
     cross_validation.json."""
     data = plan.data
     log(f"cross-validation: {args.folds} folds by {data.split}")
-    if data.split == "time" and plan.spec.needs_observer:
-        # Blocks are runs of their own: their observer columns, in worker processes now
-        # rather than one at a time inside the first fold.
-        from . import observer
-
-        observer.precompute(
-            [r for g in groups for r in g],
-            plan.spec.observer,
-            plan.spec.observer_params_file,
-            car=plan.spec.car,
-            jobs=args.workers,
-            progress=not args.quiet,
-        )
+    # Blocks cut in time read their recordings' observer columns, which the data's
+    # loading has already filtered (dataset.cut): nothing to precompute here.
     try:
         cv = cross_validate(
             plan.base,

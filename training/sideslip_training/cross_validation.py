@@ -13,7 +13,8 @@ The folds: whole bags (a bag and its mirror image together), assigned by a seede
 rank of the bag name dealt round-robin, as :func:`~.splits.split_runs` ranks them; with
 a split in time (one long recording) every run is cut into K consecutive blocks, block
 k of each run going to fold k (each block a run of its own, as the split in time makes
-them: the UKF observer starts afresh at its first sample). Where the training mirrors
+them, that remembers its recording: the UKF observer runs through the cut, as the node
+does; :func:`~.dataset.cut`). Where the training mirrors
 its runs, a held-out fold holds its runs' mirror images too, so that no fold is scored
 on one turning direction only. ``--rehearse`` runs train in every fold and validate in
 none. The z-score statistics stay the training's (the start model's with

@@ -263,12 +263,10 @@ def columns(
     a recording (:attr:`Run.recording`) reads them off the whole recording's filter, which
     ran through the samples before the cut as the node did."""
     if run.recording is not None:
-        whole = recording_of(run)
-        span, offset = filtered_span(run)
-        n = len(run.samples.stamp_ns)
-        got = columns(whole, values, params_file, car)
-        assert len(span.stamp_ns) == offset + n  # filtered_span checked the stamps
-        return {c: v[offset : offset + n] for c, v in got.items()}
+        _, offset = filtered_span(run)  # checks that the samples are the recording's
+        stop = offset + len(run.samples.stamp_ns)
+        got = columns(recording_of(run), values, params_file, car)
+        return {c: v[offset:stop] for c, v in got.items()}
     params, stl = run_params(run, params_file, car=car)
     path = cache_dir() / f"{_digest(run, params, values, stl)}.npz"
     recent = _RECENT.get(path)
