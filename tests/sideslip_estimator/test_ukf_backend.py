@@ -461,3 +461,45 @@ def test_an_unknown_axle_source_is_refused_naming_the_file(tmp_path: Path) -> No
     with pytest.raises(BackendError, match=r"axles_from must be one of .*'guess'") as info:
         create_backend("ukf", {"params_file": str(path)}, 100)
     assert str(path) in str(info.value)
+
+
+# --- the model on all sigma points at once ---------------------------------------------
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    relaxation=st.booleans(),
+    friction=st.booleans(),
+    disturbance=st.booleans(),
+)
+def test_the_model_on_all_sigma_points_at_once_is_the_model_on_each_point(
+    seed: int, relaxation: bool, friction: bool, disturbance: bool
+) -> None:
+    """fx, hx and the cross covariance take every sigma point in one call; each point's
+    row is what that point alone gives, and the covariance filterpy's own loop's."""
+    from filterpy.kalman import UnscentedKalmanFilter
+
+    values = {"tyre_relaxation": relaxation, "estimate_friction": friction}
+    values["estimate_disturbance"] = disturbance
+    backend = create_backend("ukf", {**DEFAULTS, "params_file": "paper_sedan", **values}, 100)
+    rng = np.random.default_rng(seed)
+    # Plausible states, and some a sigma point may reach: v_x below MIN_VX_MPS, μ ≤ 0.
+    spread = {"v_x_mps": (0.1, 40.0), "v_y_mps": (-3.0, 3.0), "yaw_rate_radps": (-1.0, 1.0)}
+    spread |= {"slip_front_rad": (-0.2, 0.2), "slip_rear_rad": (-0.2, 0.2)}
+    spread |= {"road_friction": (-0.1, 1.2), "lateral_disturbance_mps2": (-2.0, 2.0)}
+    points = 2 * len(backend.state_names) + 1  # Van der Merwe's sigma points
+    x = np.column_stack([rng.uniform(*spread[n], points) for n in backend.state_names])
+    inputs = {"delta0": 0.02, "delta1": -0.01, "ax0": -3.0, "ax1": 2.0}
+    at_once = backend._fx(x, 0.0025, **inputs)
+    each = np.vstack([backend._fx(row[None, :], 0.0025, **inputs) for row in x])
+    np.testing.assert_allclose(at_once, each, rtol=1e-14, atol=1e-15)
+    h_at_once = backend._hx(x, delta=0.03, a_x=-2.0)
+    h_each = np.vstack([backend._hx(row[None, :], delta=0.03, a_x=-2.0) for row in x])
+    np.testing.assert_allclose(h_at_once, h_each, rtol=1e-14, atol=1e-15)
+    assert h_at_once.shape == (points, 3)
+    ukf = backend._ukf
+    mean, z = x.mean(axis=0), h_at_once.mean(axis=0)
+    ours = ukf.cross_variance(mean, z, x, h_at_once)
+    theirs = UnscentedKalmanFilter.cross_variance(ukf, mean, z, x, h_at_once)
+    np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-12)

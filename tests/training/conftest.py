@@ -15,6 +15,19 @@ from sideslip_msgs_py.sample import SampleArrays, SensorNoiseSigma
 STEP_NS = 2_500_000  # 400 Hz
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _torch_threads(request: pytest.FixtureRequest):
+    """Torch on every core through the modules that say ``TORCH_ON_EVERY_CORE = True``
+    (they fine-tune and score shipped models: :func:`torch_support.every_core`)."""
+    if not getattr(request.module, "TORCH_ON_EVERY_CORE", False):
+        yield
+        return
+    from torch_support import every_core
+
+    with every_core():
+        yield
+
+
 @pytest.fixture(autouse=True)
 def _observer_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch):
     """The UKF observer's disk cache in a per-session temporary folder, not ~/.cache."""

@@ -21,6 +21,8 @@ from sideslip_training.calibrate import (
 from sideslip_training.cli import train_main
 from sideslip_training.evaluate_cli import main as evaluate_main
 
+TORCH_ON_EVERY_CORE = True  # fits and scorings of shipped models (conftest)
+
 TINY = ["--profile", "quick", "--max-epochs", "2", "--device", "cpu", "--quiet"]
 TRUE = np.array([1e-8, 3e-4, 1e-7, 1e-4])
 

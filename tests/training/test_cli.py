@@ -95,13 +95,21 @@ def test_train_export_evaluate_and_run_in_the_estimator(sim_bag_dir: Path, tmp_p
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
 
 
-def test_pso_run_saves_history_and_resumes_to_the_same_result(sim_bag_dir: Path, tmp_path: Path):
-    model = tmp_path / "pso.safetensors"
+@pytest.fixture(scope="module")
+def pso_run(sim_bag_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[list[str], Path]:
+    """One quick PSO (36 one-epoch trainings), shared by the tests that resume it: its
+    arguments and its model."""
+    model = tmp_path_factory.mktemp("pso") / "pso.safetensors"
     args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
     args[args.index("--max-epochs") + 1] = "1"
     args += ["--mirror", "no"]  # 36 trainings: the search is under test, not the data
     assert train_main(args) == 0
-    run_dir = tmp_path / "pso.run"
+    return args, model
+
+
+def test_pso_run_saves_history_and_resumes_to_the_same_result(pso_run):
+    args, model = pso_run
+    run_dir = model.with_suffix(".run")
     history = json.loads((run_dir / "pso_history.json").read_text())
     assert len(history["iterations"]) == 6  # quick: 5 iterations after the initial swarm
     assert all(len(it["particles"]) == 6 for it in history["iterations"])
@@ -213,15 +221,9 @@ def test_evaluate_leaves_out_non_finite_samples_says_how_many_and_prints_no_nan(
     assert {r["excluded"] for r in results} == {0, 5, 24, 104}  # β = 0 leaves out none
 
 
-def test_resume_refuses_another_run_s_data(
-    sim_bag_dir, make_arrays, write_arrays, tmp_path, capsys
-):
-    model = tmp_path / "pso.safetensors"
-    args = ["--data", str(sim_bag_dir), "--model", "lstm", "--pso", "--out", str(model), *TINY]
-    args[args.index("--max-epochs") + 1] = "1"
-    args += ["--mirror", "no"]  # 36 trainings: the search is under test, not the data
-    assert train_main(args) == 0
-    config = (tmp_path / "pso.run" / "config.json").read_text()
+def test_resume_refuses_another_run_s_data(pso_run, make_arrays, write_arrays, tmp_path, capsys):
+    args, model = pso_run
+    config = (model.with_suffix(".run") / "config.json").read_text()
     other = tmp_path / "other"
     for i in range(3):
         write_arrays(f"o{i}", make_arrays(800, seed=10 + i), folder=other)
@@ -229,7 +231,7 @@ def test_resume_refuses_another_run_s_data(
     resumed[resumed.index("--data") + 1] = str(other)
     assert train_main(resumed) == 2
     assert "was started with other data_digest" in capsys.readouterr().err
-    assert (tmp_path / "pso.run" / "config.json").read_text() == config  # record kept
+    assert (model.with_suffix(".run") / "config.json").read_text() == config  # record kept
 
 
 @pytest.mark.parametrize(

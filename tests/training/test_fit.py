@@ -17,6 +17,8 @@ from sideslip_training import observer
 from sideslip_training.fit import Description, default_start, main
 from sideslip_training.init_model import resolve
 
+TORCH_ON_EVERY_CORE = True  # fits and scorings of shipped models (conftest)
+
 SEDAN = {
     "name": "my_sedan",
     "mass_kg": 1550.0,

@@ -16,6 +16,8 @@ from sideslip_training.fit_bags_args import DEFAULT_TEST_FRACTION
 from sideslip_training.fit_bags_scoring import scored_traces
 from sideslip_training.init_model import resolve
 
+TORCH_ON_EVERY_CORE = True  # fits and scorings of shipped models (conftest)
+
 
 @pytest.fixture(scope="module")
 def fitted(foreign_bags, foreign_new_drives, tmp_path_factory):

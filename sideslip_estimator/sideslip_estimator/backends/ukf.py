@@ -35,8 +35,10 @@ Filter algebra: filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with 
 Merwe's scaled sigma points (α = 1, β = 2, κ = 0: all weights positive, 2n + 1 points).
 Ours are only: the square root is numpy's Cholesky (upper factor; filterpy's default,
 scipy's, checks its input and costs more), P is symmetrised after each update (P − K S Kᵀ
-drifts asymmetric over millions of steps), and the sigma points are redrawn where
-filterpy's predict would have (a restart, a repeated stamp). A non-finite state or
+drifts asymmetric over millions of steps), the sigma points are redrawn where filterpy's
+predict would have (a restart, a repeated stamp), and the model runs on all sigma points
+in one call (numpy arrays, one element per point) where filterpy calls it once per point
+(:func:`_batch_filter_class`; the estimates agree to 1e-16 rad). A non-finite state or
 covariance, or one that is not positive definite, restarts the filter and gives no
 estimate.
 
@@ -54,6 +56,7 @@ imported, so the registry and the other back-ends work without them.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from typing import Any, Final
@@ -90,6 +93,31 @@ _INITIAL_SIGMA_SLIP_RAD: Final = 0.02
 def _upper_cholesky(a: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """U with UᵀU = a (filterpy's convention: sigma points from the rows of U)."""
     return np.linalg.cholesky(a).T
+
+
+@functools.cache
+def _batch_filter_class(kalman: Any) -> type:
+    """filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with its ``fx`` and
+    ``hx`` called once on all sigma points (one row each) instead of once per point, and
+    the cross covariance as one product; its algebra is otherwise filterpy's own. Built
+    on first use: filterpy is imported only when a filter is."""
+
+    class BatchUnscentedKalmanFilter(kalman.UnscentedKalmanFilter):  # type: ignore[misc]
+        def compute_process_sigmas(self, dt: float, fx: Any = None, **fx_args: Any) -> None:
+            sigmas = self.points_fn.sigma_points(self.x, self.P)
+            self.sigmas_f = (fx or self.fx)(sigmas, dt, **fx_args)
+
+        def update(self, z: Any, R: Any = None, UT: Any = None, hx: Any = None, **hx_args: Any):
+            # filterpy maps hx over sigmas_f row by row, in order: hand it the rows
+            # computed at once.
+            rows = iter((hx or self.hx)(self.sigmas_f, **hx_args))
+            super().update(z, R, UT, hx=lambda _point: next(rows))
+
+        def cross_variance(self, x: Any, z: Any, sigmas_f: Any, sigmas_h: Any) -> Any:
+            # Σ_i W_i (χ_i − x)(γ_i − z)ᵀ; filterpy's residuals are plain differences.
+            return (self.Wc[:, None] * (sigmas_f - x)).T @ (sigmas_h - z)
+
+    return BatchUnscentedKalmanFilter
 
 
 def _import_filterpy() -> Any:
@@ -164,7 +192,7 @@ class UkfBackend:
         points = kalman.MerweScaledSigmaPoints(
             n, alpha=1.0, beta=2.0, kappa=0.0, sqrt_method=_upper_cholesky
         )
-        self._ukf = kalman.UnscentedKalmanFilter(
+        self._ukf = _batch_filter_class(kalman)(
             dim_x=n, dim_z=3, dt=STEP_S, hx=self._hx, fx=self._fx, points=points
         )
         self._ukf.R = np.diag(np.square([sig[k] for k in TUNED_PARAMETERS[:3]]))
@@ -172,31 +200,35 @@ class UkfBackend:
         self.reset()
 
     # --- model functions handed to filterpy ------------------------------------------------
-    def _derivative(self, x: list[float], delta: float, a_x: float) -> list[float]:
-        """dx/dt of the state (layout of :attr:`state_names`)."""
+    # Each takes all sigma points at once, one row per point (:func:`_batch_filter_class`).
+    def _derivative(
+        self, x: npt.NDArray[np.float64], delta: float, a_x: float
+    ) -> npt.NDArray[np.float64]:
+        """dx/dt of each row's state (layout of :attr:`state_names`)."""
         model = self.model
-        v_x, v_y, r = x[0], x[1], x[2]
-        mu = x[self._i_mu] if self._i_mu >= 0 else self.friction_initial
+        v_x, v_y, r = x[:, 0], x[:, 1], x[:, 2]
+        mu = x[:, self._i_mu] if self._i_mu >= 0 else self.friction_initial
         kin_f, kin_r = model.slip_angles(v_x, v_y, r, delta)
         if self.relaxation:
-            alpha_f, alpha_r = x[3], x[4]
+            alpha_f, alpha_r = x[:, 3], x[:, 4]
         else:
             alpha_f, alpha_r = kin_f, kin_r
         f_front, f_rear = model.forces(alpha_f, alpha_r, mu, a_x)
-        dx = list(model.accelerations(v_x, v_y, r, f_front, f_rear, delta, a_x))
+        dx = np.empty_like(x)
+        dx[:, 0], dx[:, 1], dx[:, 2] = model.accelerations(v_x, v_y, r, f_front, f_rear, delta, a_x)
         if self.relaxation:
             # Pacejka's first-order contact model, as the simulator's tyres relax.
-            speed = max(v_x, MIN_VX_MPS)
-            dx.append(speed / model.relaxation_front_m * (kin_f - alpha_f))
-            dx.append(speed / model.relaxation_rear_m * (kin_r - alpha_r))
+            speed = np.maximum(v_x, MIN_VX_MPS)
+            dx[:, 3] = speed / model.relaxation_front_m * (kin_f - alpha_f)
+            dx[:, 4] = speed / model.relaxation_rear_m * (kin_r - alpha_r)
         if self._i_mu >= 0:
             # A random walk that slowly forgets (Ornstein-Uhlenbeck): bounded uncertainty.
-            dx.append((self.friction_initial - mu) / self.friction_memory)
+            dx[:, self._i_mu] = (self.friction_initial - mu) / self.friction_memory
         if self._i_dist >= 0:
             # It moves the car sideways; the tyres do not carry it.
-            d_y = x[self._i_dist]
-            dx[1] += d_y
-            dx.append(-d_y / self.disturbance_memory)
+            d_y = x[:, self._i_dist]
+            dx[:, 1] += d_y
+            dx[:, self._i_dist] = -d_y / self.disturbance_memory
         return dx
 
     def _fx(
@@ -208,28 +240,25 @@ class UkfBackend:
         ax0: float = 0.0,
         ax1: float = 0.0,
     ) -> npt.NDArray[np.float64]:
-        """Heun step of dt [s] with inputs going linearly from (δ0, a_x0) to (δ1, a_x1)."""
-        x0 = x.tolist()
-        k1 = self._derivative(x0, delta0, ax0)
-        x1 = [xi + dt * ki for xi, ki in zip(x0, k1, strict=True)]
-        k2 = self._derivative(x1, delta1, ax1)
-        h = 0.5 * dt
-        return np.array([xi + h * (a + b) for xi, a, b in zip(x0, k1, k2, strict=True)])
+        """Heun step of dt [s] of each row, inputs going linearly from (δ0, a_x0) to
+        (δ1, a_x1)."""
+        k1 = self._derivative(x, delta0, ax0)
+        k2 = self._derivative(x + dt * k1, delta1, ax1)
+        return x + (0.5 * dt) * (k1 + k2)
 
     def _hx(self, x: npt.NDArray[np.float64], delta: float, a_x: float) -> npt.NDArray[np.float64]:
-        """Predicted (ψ̇, a_y, v_x) of a state; a_y = (F_yf cos δ + F_yr)/m."""
-        s = x.tolist()
-        v_x, v_y, r = s[0], s[1], s[2]
-        mu = s[self._i_mu] if self._i_mu >= 0 else self.friction_initial
+        """Predicted (ψ̇, a_y, v_x) of each row's state; a_y = (F_yf cos δ + F_yr)/m."""
+        v_x, v_y, r = x[:, 0], x[:, 1], x[:, 2]
+        mu = x[:, self._i_mu] if self._i_mu >= 0 else self.friction_initial
         if self.relaxation:
-            alpha_f, alpha_r = s[3], s[4]
+            alpha_f, alpha_r = x[:, 3], x[:, 4]
         else:
             alpha_f, alpha_r = self.model.slip_angles(v_x, v_y, r, delta)
         f_front, f_rear = self.model.forces(alpha_f, alpha_r, mu, a_x)
         a_y = (f_front * math.cos(delta) + f_rear) / self.model.m
         if self._i_dist >= 0:
-            a_y += s[self._i_dist]  # the IMU reads the car's acceleration, all of it
-        return np.array([r, a_y, v_x])
+            a_y = a_y + x[:, self._i_dist]  # the IMU reads the car's acceleration, all of it
+        return np.stack([r, a_y, v_x], axis=1)
 
     # --- Backend protocol ------------------------------------------------------------------
     def reset(self) -> None:
@@ -241,7 +270,7 @@ class UkfBackend:
         v_x, r = float(z[2]), float(z[0])
         x = [v_x, 0.0, r]
         if self.relaxation:
-            x += list(self.model.slip_angles(v_x, 0.0, r, delta))
+            x += [float(a) for a in self.model.slip_angles(v_x, 0.0, r, delta)]
         if self._i_mu >= 0:
             x.append(self.friction_initial)
         if self._i_dist >= 0:

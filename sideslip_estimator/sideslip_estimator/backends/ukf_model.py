@@ -34,15 +34,19 @@ optional disturbance state, :mod:`.ukf`, docs/evaluation/road-bank).
 
 :class:`UkfParams` is the vehicle's file (``python -m sideslip_sim.ukf_params VEHICLE``
 writes it; shipped ones in ``data/ukf``); :class:`SingleTrackMagicFormula` evaluates the
-equations above on Python floats (the filter calls it once per sigma point, where numpy's
-per-call overhead on 1-element arrays would cost more than the arithmetic).
+equations above elementwise: the filter hands it all its sigma points at once (one numpy
+array per state, 13 elements with the defaults), as one call per point in Python floats
+cost about five times as much (:mod:`.ukf`'s cost paragraph).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Final
+from typing import Final, TypeAlias
+
+import numpy as np
+import numpy.typing as npt
 
 from .base import BackendError
 from .params_file import check_keys, finite_number, read_params_file
@@ -52,6 +56,8 @@ GRAVITY_MPS2: Final = 9.80665
 MIN_VX_MPS: Final = 0.5
 """Slip angles of a state with a smaller v_x [m/s] use this (a sigma point may go there)."""
 _MIN_FRICTION: Final = 0.05  # a sigma point's μ is floored here (the tyre model's floor)
+Values: TypeAlias = float | npt.NDArray[np.float64]
+"""One state's value, or the same quantity of every sigma point (elementwise)."""
 AXLES_FROM: Final = ("vehicle", "recordings", "description")
 """Where a file's axle curves come from (its optional ``axles_from`` key): ``vehicle``
 (the car's own tyres or full parameters: ``sideslip_sim.ukf_params``; the default),
@@ -123,7 +129,8 @@ class UkfParams:
 
 
 class SingleTrackMagicFormula:
-    """The model of the module docstring as plain functions of Python floats."""
+    """The model of the module docstring, elementwise over the states (:data:`Values`);
+    the inputs δ [rad] and a_x [m/s²] are one value for all of them."""
 
     def __init__(self, p: UkfParams) -> None:
         self.m, self.iz = p.mass_kg, p.yaw_inertia_kgm2
@@ -137,20 +144,24 @@ class SingleTrackMagicFormula:
         self.relaxation_front_m = p.relaxation_length_front_m
         self.relaxation_rear_m = p.relaxation_length_rear_m
 
-    def slip_angles(self, v_x: float, v_y: float, r: float, delta: float) -> tuple[float, float]:
+    def slip_angles(
+        self, v_x: Values, v_y: Values, r: Values, delta: float
+    ) -> tuple[Values, Values]:
         """Kinematic (α_f, α_r) [rad] of the axles."""
-        v_x = max(v_x, MIN_VX_MPS)
-        return delta - math.atan((v_y + self.a * r) / v_x), -math.atan((v_y - self.b * r) / v_x)
+        v_x = np.maximum(v_x, MIN_VX_MPS)
+        return delta - np.arctan((v_y + self.a * r) / v_x), -np.arctan((v_y - self.b * r) / v_x)
 
     @staticmethod
-    def _axle(mf: tuple[float, float, float, float], alpha: float, mu: float) -> float:
+    def _axle(mf: tuple[float, float, float, float], alpha: Values, mu: Values) -> Values:
         b, c, e, d = mf
         x = b * alpha / mu
-        return mu * d * math.sin(c * math.atan(x - e * (x - math.atan(x))))
+        return mu * d * np.sin(c * np.arctan(x - e * (x - np.arctan(x))))
 
-    def forces(self, alpha_f: float, alpha_r: float, mu: float, a_x: float) -> tuple[float, float]:
+    def forces(
+        self, alpha_f: Values, alpha_r: Values, mu: Values, a_x: float
+    ) -> tuple[Values, Values]:
         """(F_yf, F_yr) [N], each axle's lateral force in its own wheel frame."""
-        mu = max(mu, _MIN_FRICTION)
+        mu = np.maximum(mu, _MIN_FRICTION)
         shift = self.transfer_per_ax * a_x
         # F_z/F_z0 scales the whole axle curve; floored so heavy braking cannot flip it.
         load_f = max(1.0 - shift / self.fz_front_n, 0.0)
@@ -162,16 +173,16 @@ class SingleTrackMagicFormula:
 
     def accelerations(
         self,
-        v_x: float,
-        v_y: float,
-        r: float,
-        f_front: float,
-        f_rear: float,
+        v_x: Values,
+        v_y: Values,
+        r: Values,
+        f_front: Values,
+        f_rear: Values,
         delta: float,
         a_x: float,
-    ) -> tuple[float, float, float]:
+    ) -> tuple[Values, Values, Values]:
         """(v̇_x, v̇_y, ψ̈) of the module docstring for the axle forces [N]."""
-        f_front *= math.cos(delta)
+        f_front = f_front * math.cos(delta)
         return (
             a_x + r * v_y,
             (f_front + f_rear) / self.m - r * v_x,
