@@ -42,13 +42,15 @@ in one call (numpy arrays, one element per point) where filterpy calls it once p
 covariance, or one that is not positive definite, restarts the filter and gives no
 estimate.
 
-Cost per ``update`` (measured on the development machine, one core, Python 3.11, numpy
-2.4, filterpy 2.0.0, on the paper-test bag scen1): 0.27 ms with the defaults (6 states,
-13 sigma points), 0.23 ms without the friction state, 0.17 ms with neither it nor the
-tyre lag; the node's budget is 2.5 ms per sample. About 0.10 ms of it is the model
-(13 Heun steps at 6 µs, 13 measurement predictions at 1.6 µs, plain Python floats), the
-rest filterpy's sigma-point loops and algebra: well inside the budget, so nothing of
-filterpy is replaced. numpy's Cholesky takes 3.7 µs against scipy's 6.3 µs, twice a step.
+Cost per ``update`` (``bench/tools/ukf_update_cost.py``: one core of the 2-core
+development VM, Python 3.11, numpy 2.4, filterpy 2.0.0, the defaults: 6 states, 13 sigma
+points; an 8-s sine steer of paper_sedan near the limit with the paper's noise, the best
+of three passes, the two versions run alternately on the otherwise idle machine,
+2026-12-07): 0.196–0.202 ms with the model on all sigma points at once, 0.265–0.272 ms
+with filterpy's call per point in Python floats (the model alone was about 0.10 ms of
+it: 13 Heun steps at 6 µs, 13 measurement predictions at 1.6 µs). The rest is filterpy's
+sigma points, transforms and algebra; the node's budget is 2.5 ms per sample. numpy's
+Cholesky takes 3.7 µs against scipy's 6.3 µs, twice a step.
 
 filterpy (and scipy) are imported when the back-end is built, never when this module is
 imported, so the registry and the other back-ends work without them.
