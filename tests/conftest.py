@@ -22,6 +22,17 @@ settings.register_profile("sideslip", deadline=None)
 settings.load_profile("sideslip")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _observer_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The UKF observer's disk cache in this session's temporary folder, not ~/.cache,
+    from before the first fixture (module- and session-scoped ones too) to the end: a
+    cache kept between runs would let a test read columns that an older filter wrote,
+    and hide what a fresh machine computes."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("SIDESLIP_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+        yield
+
+
 @pytest.fixture
 def ros_domain() -> RosDomain:
     domain_id = next_domain()

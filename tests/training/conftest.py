@@ -28,12 +28,6 @@ def _torch_threads(request: pytest.FixtureRequest):
         yield
 
 
-@pytest.fixture(autouse=True)
-def _observer_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch):
-    """The UKF observer's disk cache in a per-session temporary folder, not ~/.cache."""
-    monkeypatch.setenv("SIDESLIP_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
-
-
 def _make_arrays(
     n: int,
     *,
