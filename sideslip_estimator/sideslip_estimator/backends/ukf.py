@@ -302,7 +302,10 @@ class UkfBackend:
         z = np.array([row[YAW_RATE], row[Y_A], u])
         inputs = (float(row[STL]) / self._steer_ratio, float(row[X_A]))
         try:
-            self._step(z, inputs, stamp)
+            # A sigma point driven non-finite ends in the checks that restart the filter;
+            # numpy's warnings on the way would only repeat that, at every sample.
+            with np.errstate(all="ignore"):
+                self._step(z, inputs, stamp)
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError):
             # P lost positive definiteness, or the model met a non-finite number.
             self.reset()
