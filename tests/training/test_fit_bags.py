@@ -49,8 +49,8 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
     # fine-tuned network alone (it learnt from the 12 recordings). With the UKF observer
     # running through the cut into that stretch, as in the node, two epochs beat the
     # start there (until 2026-12-07 the observer started again at the cut, and the start
-    # was kept): the file is the fine-tune, a quarter of the way from the start's
-    # weights, records its recordings, and the node runs it alone.
+    # was kept): the file is the fine-tune, half way from the start's weights, records
+    # its recordings, and the node runs it alone.
     metrics = json.loads((out.with_suffix(".fit") / "train-run" / "metrics.json").read_text())
     assert metrics["validation_mirror_averaged"] == {"start": True, "model": False}
     history = json.loads((out.with_suffix(".fit") / "train-run" / "history.json").read_text())
@@ -69,10 +69,10 @@ def test_recordings_of_another_stack_give_a_model_its_axle_file_and_a_card(fitte
     assert "this file holds the shipped weights" not in card
     # The kinematic baselines read the reference velocity: not a sensor of this car.
     assert "Kinematic" not in card
-    # A quarter of the way from the ensemble start's weights by default (what that does
-    # to the weights: test_cli's interpolation test; these 2 epochs keep the start's).
+    # Half way from the ensemble start's weights by default (what that does to the
+    # weights: test_cli's interpolation test).
     config = json.loads((out.with_suffix(".fit") / "train-run" / "config.json").read_text())
-    assert config["args"]["interpolate"] == 0.25
+    assert config["args"]["interpolate"] == 0.5
 
 
 def test_the_identified_axles_and_the_fine_tuning_beat_what_the_node_had_before(
@@ -234,7 +234,7 @@ def test_the_default_share_back_to_the_start_is_the_one_chosen_for_that_start(tm
 
     given = argparse.Namespace(interpolate=None)
     assert interpolation(given, "fleet_ukf_merged") == 0.25
-    assert interpolation(given, "fleet_ukf_ensemble") == 0.25
+    assert interpolation(given, "fleet_ukf_ensemble") == 0.5
     assert interpolation(given, str(tmp_path / "fleet_ukf_merged.safetensors")) == 0.25
     assert interpolation(given, "fleet_ukf_measurable") == DEFAULT_INTERPOLATION == 0.5
     assert interpolation(argparse.Namespace(interpolate=0.8), "fleet_ukf_merged") == 0.8

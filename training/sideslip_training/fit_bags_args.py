@@ -22,15 +22,18 @@ DEFAULT_INTERPOLATION: Final = 0.5
 """The fitted weights kept half way from the start model's (``sideslip-train
 --interpolate``): chosen on validation cars' other drives with ``fleet_ukf_measurable``
 (O5U) as the start (docs/evaluation/fit-bags, "Half way back to the start")."""
-START_INTERPOLATION: Final = {"fleet_ukf_merged": 0.25, "fleet_ukf_ensemble": 0.25}
+START_INTERPOLATION: Final = {"fleet_ukf_merged": 0.25, "fleet_ukf_ensemble": 0.5}
 """Starts with a share of their own, chosen for that start on validation cars' other
-drives. ``fleet_ukf_merged``, fitted to 5 minutes of 8 validation cars' driving, scored on
-their 18 benchmark drives each: α 0.25 0.0290°, 0.5 0.0307°, the start alone 0.0301°
-(0.25 better than 0.5 on 6 of 8; docs/models/fleet_ukf_merged/finetune-alpha-validation.json).
-``fleet_ukf_ensemble`` on the same cars and drives: α 0.25 0.0283°, 0.5 0.0296°, the
-start alone 0.0284° (0.25 better than 0.5 on 5 of 8;
-docs/models/fleet_ukf_ensemble/finetune-start-validation.json). A better start needs
-less of the recordings' pull."""
+drives. ``fleet_ukf_ensemble`` (since 2026-12-07; fitted at 3e-4 with the UKF observer
+running through the cut into the validation stretch, as the node runs it), fitted to
+5 minutes of 8 validation cars' driving, scored on their 18 benchmark drives each:
+α 0.5 0.0267°, 0.25 0.0271°, 1 0.0297°, the start alone 0.0284° (0.5 better than 0.25
+on 6 of 8, than the start on 6 of 8; docs/evaluation/fit-bags/through-the-cut.json).
+Until then 0.25, chosen the same way on fits whose observer restarted at the cut
+(0.0276° at 3e-4; docs/models/fleet_ukf_ensemble/finetune-lr-validation.json).
+``fleet_ukf_merged`` on the same cars and drives (with restarts): α 0.25 0.0290°, 0.5
+0.0307°, the start alone 0.0301° (0.25 better than 0.5 on 6 of 8;
+docs/models/fleet_ukf_merged/finetune-alpha-validation.json)."""
 
 
 START_LEARNING_RATE: Final = {"fleet_ukf_ensemble": 3e-4}

@@ -9,7 +9,7 @@ parameters (from the bag's vehicle record) or a given ``ukf`` params file (a rea
 recording). Values: the parameters of the ``ukf`` back-end other than ``params_file``,
 stored in the model file (``ModelMetadata.observer``) so deployment runs the same filter.
 
-The filter costs about 0.3 ms per sample in Python, so the columns of a run are cached
+The filter costs about 0.2 ms per sample in Python, so the columns of a run are cached
 on disk, keyed by a digest of the samples, the params file's contents and the values
 (``$SIDESLIP_CACHE`` or ``~/.cache/sideslip``/observer); :func:`precompute` fills the
 cache for many runs in worker processes. The filter is exactly symmetric (on a run mirrored

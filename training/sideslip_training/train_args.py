@@ -163,8 +163,8 @@ def train_parser() -> argparse.ArgumentParser:
         metavar="ALPHA",
         help="with --init: export the start model's weights moved this share of the way "
         "to the fine-tuned ones, θ0 + ALPHA (θ - θ0), before the σ calibration (default 1: "
-        "the fine-tuned weights; sideslip-fit --bags uses 0.25 from fleet_ukf_ensemble or "
-        "fleet_ukf_merged and 0.5 from other starts, chosen on validation cars: "
+        "the fine-tuned weights; sideslip-fit --bags uses 0.25 from fleet_ukf_merged and "
+        "0.5 from fleet_ukf_ensemble and other starts, chosen on validation cars: "
         "docs/training.md); needs --normalization keep",
     )
     p.add_argument(
