@@ -35,8 +35,8 @@ optional disturbance state, :mod:`.ukf`, docs/evaluation/road-bank).
 :class:`UkfParams` is the vehicle's file (``python -m sideslip_sim.ukf_params VEHICLE``
 writes it; shipped ones in ``data/ukf``); :class:`SingleTrackMagicFormula` evaluates the
 equations above elementwise: the filter hands it all its sigma points at once (one numpy
-array per state, 13 elements with the defaults), as one call per point in Python floats
-cost about five times as much (:mod:`.ukf`'s cost paragraph).
+array per state, 13 elements with the defaults): with one call per point in Python floats
+an update took 0.27 ms, with one call for all 0.20 ms (:mod:`.ukf`'s cost paragraph).
 """
 
 from __future__ import annotations
